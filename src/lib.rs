@@ -13,6 +13,8 @@
 //!   the exact (Cauer) inverse and the Levenberg-Marquardt refinement.
 //! * [`recording`]: the `REC.csv` + `REC.json` recording format.
 //! * [`plot`]: Bode plots as SVG.
+//! * [`import`]: MAT v5 and DaISy files into recordings.
+//! * [`sim`]: simulated recordings of chains (exact ZOH sampling, noise, quantisation).
 //!
 //! Conventions: SI units throughout (kg m^2, N m/rad, N m s/rad, rad, rad/s, Hz, s). The
 //! plant is the motor mobility: motor torque -> motor angular velocity. Body 1 is the motor.
@@ -20,6 +22,7 @@
 pub mod excitation;
 pub mod frf;
 pub mod identify;
+pub mod import;
 pub mod model;
 pub mod plot;
 pub mod recording;

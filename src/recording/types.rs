@@ -1,0 +1,86 @@
+use crate::excitation::ExcitationInfo;
+use serde::{Deserialize, Serialize};
+
+/// The `REC.json` sidecar written beside every recording.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct Sidecar {
+    /// Sample rate [Hz]. Without it the rate is inferred from `time_s`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sample_rate_hz: Option<f64>,
+    /// The excitation that produced the recording.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub excitation: Option<ExcitationInfo>,
+    /// Total inertia [kg m^2], if known from elsewhere (e.g. a transient test).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub total_inertia_kgm2: Option<f64>,
+    /// Delay between the torque command of sample k and its application, in whole samples,
+    /// beyond the zero-order hold (e.g. 1 for a drive that applies a set-point at the next SYNC).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub io_delay_samples: Option<u32>,
+    /// Where the data came from and what the columns mean, free text.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub source: Option<String>,
+    /// Why the recording ended, if not by completing the planned excitation.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ended_because: Option<String>,
+}
+
+/// Which motion signal a recording's response columns hold.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum MotionSignal {
+    /// `position_rad`: encoder position [rad] (velocity is derived by backward difference).
+    Position,
+    /// `velocity_rad_s`: a measured velocity [rad/s].
+    Velocity,
+    /// `acceleration_rad_s2`: a measured acceleration [rad/s^2] (e.g. accelerometer data).
+    Acceleration,
+}
+
+/// A recording in memory: uniformly sampled torque command and motion response.
+///
+/// Column names in `REC.csv`: `time_s`, `torque_cmd_nm`, `position_rad`, optional
+/// `velocity_rad_s`, optional `acceleration_rad_s2`. At least one motion column is present.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Recording {
+    /// Sample times [s].
+    pub time_s: Vec<f64>,
+    /// Commanded motor torque [N m].
+    pub torque_cmd_nm: Vec<f64>,
+    /// Motor position [rad].
+    pub position_rad: Option<Vec<f64>>,
+    /// Motor velocity [rad/s] as recorded (not derived).
+    pub velocity_rad_s: Option<Vec<f64>>,
+    /// Acceleration [rad/s^2] as recorded.
+    pub acceleration_rad_s2: Option<Vec<f64>>,
+    /// Sample rate [Hz] (from the sidecar or inferred from `time_s`).
+    pub sample_rate_hz: f64,
+    /// The sidecar, or a default one if none was found.
+    pub sidecar: Sidecar,
+}
+
+impl Recording {
+    /// Number of samples.
+    pub fn len(&self) -> usize {
+        self.torque_cmd_nm.len()
+    }
+
+    /// True when the recording holds no samples.
+    pub fn is_empty(&self) -> bool {
+        self.torque_cmd_nm.is_empty()
+    }
+
+    /// The preferred motion signal for estimating the motor mobility: position (differenced)
+    /// when present, else velocity, else acceleration.
+    pub fn preferred_motion(&self) -> Option<(MotionSignal, &[f64])> {
+        if let Some(p) = &self.position_rad {
+            Some((MotionSignal::Position, p))
+        } else if let Some(v) = &self.velocity_rad_s {
+            Some((MotionSignal::Velocity, v))
+        } else {
+            self.acceleration_rad_s2
+                .as_deref()
+                .map(|a| (MotionSignal::Acceleration, a))
+        }
+    }
+}

@@ -1,1 +1,1 @@
-//! Import of external measurement files (MAT v5, DaISy ASCII) into [].
+//! Import of external measurement files (MAT v5, DaISy ASCII) into [`crate::recording::Recording`].

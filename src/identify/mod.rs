@@ -1,1 +1,14 @@
-//! (under construction)
+//! Identification of the compliant chain from a measured FRF, each step visible:
+//!
+//! 1. [`inertia`]: total inertia from the low-frequency gain (paper step 1).
+//! 2. [`detect`]: anti-resonance / resonance pairs on the measured FRF.
+//! 3. [`paper`]: the paper's step-by-step algorithm (mismatch ratios, amplitude increments).
+//! 4. [`exact`]: the exact inverse (the chain whose spectra are exactly the measured ones).
+//! 5. [`fit`]: Levenberg-Marquardt refinement of all J, c, d on the weighted log-complex FRF
+//!    error, with multi-start, standard deviations and automatic model order.
+
+pub mod detect;
+pub mod exact;
+pub mod fit;
+pub mod inertia;
+pub mod paper;

@@ -12,3 +12,6 @@ pub mod exact;
 pub mod fit;
 pub mod inertia;
 pub mod paper;
+
+#[cfg(test)]
+mod tests_paper;

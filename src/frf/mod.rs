@@ -3,6 +3,31 @@
 //! The shared result type is [`Frf`]: one complex value per frequency line with the
 //! variance of that value (so that every Bode point carries an uncertainty) and, where the
 //! estimator provides it, the coherence.
+//!
+//! * [`PeriodicEstimator`] / [`estimate_periodic`]: multisine excitation, per-line
+//!   averaging over steady periods with the errors-in-variables variance, levels at
+//!   non-excited lines ([`NonExcitedLevels`]) to detect nonlinear distortion.
+//! * [`WelchH1`] / [`welch_h1`]: arbitrary excitation, Welch-averaged H1 with coherence.
+//! * [`differenced_velocity`], [`difference_quotient_response`], [`remove_linear_trend`]:
+//!   turning drifting encoder position into something an FRF can be taken from.
+//!
+//! All estimators plan their FFT once and process streamed chunks without allocating.
 
+mod error;
+mod periodic;
+#[cfg(test)]
+mod testutil;
 mod types;
+mod velocity;
+mod welch;
+
+pub use error::FrfError;
+pub use periodic::{
+    estimate_periodic, NonExcitedLevels, PeriodicEstimator, DEFAULT_INFER_THRESHOLD,
+};
 pub use types::{Frf, FrfKind};
+pub use velocity::{
+    difference_quotient_response, differenced_velocity, differenced_velocity_into,
+    remove_linear_trend,
+};
+pub use welch::{welch_h1, WelchH1, Window};

@@ -38,7 +38,9 @@ pub enum ExcitationError {
         nyquist_hz: f64,
     },
     /// The band lies entirely below the first DFT line of the period (`fs / N`).
-    #[error("band upper edge {hi_hz} Hz is below one line spacing {spacing_hz} Hz; use a longer period")]
+    #[error(
+        "band upper edge {hi_hz} Hz is below one line spacing {spacing_hz} Hz; use a longer period"
+    )]
     BandBelowLineSpacing {
         /// Upper band edge [Hz].
         hi_hz: f64,
@@ -72,7 +74,9 @@ pub enum ExcitationError {
         got: usize,
     },
     /// An amplitude is negative or non-finite, or all amplitudes are zero.
-    #[error("invalid amplitude {value} at excited line index {index} (need finite >= 0, not all zero)")]
+    #[error(
+        "invalid amplitude {value} at excited line index {index} (need finite >= 0, not all zero)"
+    )]
     InvalidAmplitude {
         /// Index into the excited-line list.
         index: usize,
@@ -118,7 +122,9 @@ pub enum ExcitationError {
         duration_s: f64,
     },
     /// The taper length is negative, non-finite or longer than half the duration.
-    #[error("invalid taper {taper_s} s for duration {duration_s} s (need 0 <= taper <= duration / 2)")]
+    #[error(
+        "invalid taper {taper_s} s for duration {duration_s} s (need 0 <= taper <= duration / 2)"
+    )]
     InvalidTaper {
         /// The taper length [s].
         taper_s: f64,

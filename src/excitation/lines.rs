@@ -97,22 +97,52 @@ mod tests {
     #[test]
     fn band_edges_snap_to_lines() {
         // fs = 1000, N = 1000: spacing 1 Hz.
-        assert_eq!(band_lines(1000.0, 1000, [2.0, 5.0]).unwrap(), vec![2, 3, 4, 5]);
+        assert_eq!(
+            band_lines(1000.0, 1000, [2.0, 5.0]).unwrap(),
+            vec![2, 3, 4, 5]
+        );
         assert_eq!(band_lines(1000.0, 1000, [0.0, 1.5]).unwrap(), vec![1]);
         // The Nyquist line (k = 500) is never used.
-        assert_eq!(*band_lines(1000.0, 1000, [498.0, 500.0]).unwrap().last().unwrap(), 499);
+        assert_eq!(
+            *band_lines(1000.0, 1000, [498.0, 500.0])
+                .unwrap()
+                .last()
+                .unwrap(),
+            499
+        );
     }
 
     #[test]
     fn band_errors() {
         use ExcitationError as E;
-        assert!(matches!(band_lines(1000.0, 1000, [1.0, 600.0]), Err(E::BandAboveNyquist { .. })));
-        assert!(matches!(band_lines(1000.0, 100, [0.0, 5.0]), Err(E::BandBelowLineSpacing { .. })));
-        assert!(matches!(band_lines(1000.0, 100, [11.0, 19.0]), Err(E::NoLineInBand { .. })));
-        assert!(matches!(band_lines(1000.0, 100, [30.0, 20.0]), Err(E::InvalidBand { .. })));
-        assert!(matches!(band_lines(1000.0, 100, [f64::NAN, 20.0]), Err(E::InvalidBand { .. })));
-        assert!(matches!(band_lines(1000.0, 3, [0.0, 400.0]), Err(E::PeriodTooShort { .. })));
-        assert!(matches!(band_lines(0.0, 100, [0.0, 400.0]), Err(E::InvalidSampleRate { .. })));
+        assert!(matches!(
+            band_lines(1000.0, 1000, [1.0, 600.0]),
+            Err(E::BandAboveNyquist { .. })
+        ));
+        assert!(matches!(
+            band_lines(1000.0, 100, [0.0, 5.0]),
+            Err(E::BandBelowLineSpacing { .. })
+        ));
+        assert!(matches!(
+            band_lines(1000.0, 100, [11.0, 19.0]),
+            Err(E::NoLineInBand { .. })
+        ));
+        assert!(matches!(
+            band_lines(1000.0, 100, [30.0, 20.0]),
+            Err(E::InvalidBand { .. })
+        ));
+        assert!(matches!(
+            band_lines(1000.0, 100, [f64::NAN, 20.0]),
+            Err(E::InvalidBand { .. })
+        ));
+        assert!(matches!(
+            band_lines(1000.0, 3, [0.0, 400.0]),
+            Err(E::PeriodTooShort { .. })
+        ));
+        assert!(matches!(
+            band_lines(0.0, 100, [0.0, 400.0]),
+            Err(E::InvalidSampleRate { .. })
+        ));
     }
 
     #[test]

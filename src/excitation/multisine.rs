@@ -120,7 +120,9 @@ impl MultisineDesign {
 
         let (excited, detection, mut rng) = match self.phases {
             PhaseDesign::Schroeder => (candidates, Vec::new(), None),
-            PhaseDesign::Random { seed } => (candidates, Vec::new(), Some(StdRng::seed_from_u64(seed))),
+            PhaseDesign::Random { seed } => {
+                (candidates, Vec::new(), Some(StdRng::seed_from_u64(seed)))
+            }
             PhaseDesign::OddRandom { seed, group } => {
                 if group < 2 {
                     return Err(ExcitationError::InvalidGroup { group });
@@ -140,8 +142,12 @@ impl MultisineDesign {
 
         let amps = relative_amplitudes(&self.amplitude, &excited)?;
         // Lines given zero amplitude are not excited.
-        let (excited, amps): (Vec<usize>, Vec<f64>) =
-            excited.iter().zip(&amps).filter(|(_, &a)| a > 0.0).map(|(&k, &a)| (k, a)).unzip();
+        let (excited, amps): (Vec<usize>, Vec<f64>) = excited
+            .iter()
+            .zip(&amps)
+            .filter(|(_, &a)| a > 0.0)
+            .map(|(&k, &a)| (k, a))
+            .unzip();
         let phases = match rng.as_mut() {
             None => schroeder_phases(&excited, &amps),
             Some(r) => random_phases(excited.len(), r),
@@ -169,16 +175,24 @@ impl MultisineDesign {
 }
 
 /// Relative amplitudes per excited line for a shape; validates custom lists and exponents.
-fn relative_amplitudes(shape: &AmplitudeShape, lines: &[usize]) -> Result<Vec<f64>, ExcitationError> {
+fn relative_amplitudes(
+    shape: &AmplitudeShape,
+    lines: &[usize],
+) -> Result<Vec<f64>, ExcitationError> {
     match shape {
         AmplitudeShape::Flat => Ok(vec![1.0; lines.len()]),
         AmplitudeShape::PowerLaw { exponent } => {
             if !exponent.is_finite() {
-                return Err(ExcitationError::InvalidExponent { exponent: *exponent });
+                return Err(ExcitationError::InvalidExponent {
+                    exponent: *exponent,
+                });
             }
             // f = k * spacing: the common factor cancels; relative to the first line.
             let k0 = lines[0] as f64;
-            let amps: Vec<f64> = lines.iter().map(|&k| (k as f64 / k0).powf(*exponent)).collect();
+            let amps: Vec<f64> = lines
+                .iter()
+                .map(|&k| (k as f64 / k0).powf(*exponent))
+                .collect();
             check_amplitudes(&amps)?;
             Ok(amps)
         }
@@ -196,11 +210,18 @@ fn relative_amplitudes(shape: &AmplitudeShape, lines: &[usize]) -> Result<Vec<f6
 }
 
 fn check_amplitudes(a: &[f64]) -> Result<(), ExcitationError> {
-    if let Some((index, &value)) = a.iter().enumerate().find(|(_, v)| !(v.is_finite() && **v >= 0.0)) {
+    if let Some((index, &value)) = a
+        .iter()
+        .enumerate()
+        .find(|(_, v)| !(v.is_finite() && **v >= 0.0))
+    {
         return Err(ExcitationError::InvalidAmplitude { index, value });
     }
     if a.iter().all(|&v| v == 0.0) {
-        return Err(ExcitationError::InvalidAmplitude { index: 0, value: 0.0 });
+        return Err(ExcitationError::InvalidAmplitude {
+            index: 0,
+            value: 0.0,
+        });
     }
     Ok(())
 }

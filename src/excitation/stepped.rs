@@ -63,7 +63,10 @@ impl SteppedSineDesign {
             if !(f.is_finite() && f > 0.0) {
                 return Err(ExcitationError::InvalidFrequency { freq_hz: f });
             }
-            let too_high = ExcitationError::FrequencyAboveNyquist { freq_hz: f, nyquist_hz };
+            let too_high = ExcitationError::FrequencyAboveNyquist {
+                freq_hz: f,
+                nyquist_hz,
+            };
             if f >= nyquist_hz {
                 return Err(too_high);
             }
@@ -78,7 +81,8 @@ impl SteppedSineDesign {
         for (&requested_hz, &(line, p)) in self.frequencies_hz.iter().zip(&grid) {
             one.clear();
             one.extend((0..p).map(|n| (2.0 * PI * (line * n % p) as f64 / p as f64).sin()));
-            let amplitude_nm = scale_to_limits(&mut one, self.peak_limit_nm, Some(self.rms_limit_nm));
+            let amplitude_nm =
+                scale_to_limits(&mut one, self.peak_limit_nm, Some(self.rms_limit_nm));
             let start = signal.len();
             for _ in 0..reps {
                 signal.extend_from_slice(&one);
@@ -187,11 +191,132 @@ impl SteppedSine {
     /// `(start, len, line)` per block: first sample, length in samples (settle included) and
     /// excited line of the block's period.
     pub fn segments(&self) -> Vec<(usize, usize, usize)> {
-        self.blocks.iter().map(|b| (b.start, b.len(), b.line)).collect()
+        self.blocks
+            .iter()
+            .map(|b| (b.start, b.len(), b.line))
+            .collect()
     }
 
     /// Per-block descriptions, in playing order.
     pub fn infos(&self) -> Vec<ExcitationInfo> {
         self.blocks.iter().map(SteppedBlock::info).collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::excitation::test_util::naive_line_spectrum;
+
+    fn design() -> SteppedSineDesign {
+        SteppedSineDesign {
+            sample_rate_hz: 1000.0,
+            frequencies_hz: vec![0.7, 3.3, 17.0, 123.4, 333.3, 499.0],
+            min_period_samples: 200,
+            periods: 3,
+            settle_periods: 2,
+            peak_limit_nm: 2.0,
+            rms_limit_nm: 1.0,
+        }
+    }
+
+    #[test]
+    fn blocks_are_exactly_periodic_on_the_grid() {
+        let d = design();
+        let s = d.generate().unwrap();
+        assert_eq!(s.blocks.len(), 6);
+        let mut next = 0;
+        for ((start, len, line), b) in s.segments().into_iter().zip(&s.blocks) {
+            assert_eq!(start, next);
+            next = start + len;
+            let p = b.period_samples;
+            assert!(p >= 200 && 2 * line < p);
+            assert_eq!(len, 5 * p);
+            assert_eq!(b.steady_start(), start + 2 * p);
+            let x = &s.signal[start..start + len];
+            // Exactly periodic (bitwise), starting at zero torque.
+            assert_eq!(x[0], 0.0);
+            for i in 0..len - p {
+                assert_eq!(x[i], x[i + p], "block at {start}, sample {i}");
+            }
+            // Played frequency on the grid of the period, near the requested one.
+            let df = 1000.0 / p as f64;
+            assert!((b.frequency_hz - line as f64 * df).abs() < 1e-12);
+            assert!((b.frequency_hz - b.requested_hz).abs() <= 0.25 * df + 1e-12);
+            // Naive DFT of one period: energy at `line` only.
+            let (amp, _) = naive_line_spectrum(&x[..p]);
+            for (k, &a) in amp.iter().enumerate() {
+                if k == line {
+                    assert!((a - b.amplitude_nm).abs() < 1e-9 * b.amplitude_nm);
+                } else {
+                    assert!(a < 1e-9 * b.amplitude_nm, "block {start}: line {k} has {a}");
+                }
+            }
+            // Limits: rms 1 binds (amplitude sqrt 2 < peak limit 2).
+            assert!((b.rms_nm - 1.0).abs() < 1e-12);
+            assert!(b.peak_nm <= 2.0);
+            let info = b.info();
+            assert_eq!(info.kind, ExcitationKind::SteppedSine);
+            assert_eq!(info.excited_lines, vec![line]);
+            assert_eq!(
+                (info.period_samples, info.periods, info.transient_periods),
+                (p, 3, 2)
+            );
+        }
+        assert_eq!(next, s.signal.len());
+        assert_eq!(s.infos().len(), 6);
+    }
+
+    #[test]
+    fn peak_limit_can_bind() {
+        let mut d = design();
+        d.rms_limit_nm = 10.0;
+        let s = d.generate().unwrap();
+        for b in &s.blocks {
+            assert!((b.peak_nm - 2.0).abs() < 1e-12);
+            assert!(b.rms_nm < 10.0);
+        }
+    }
+
+    #[test]
+    fn bad_stepped_inputs() {
+        use ExcitationError as E;
+        let with = |f: &dyn Fn(&mut SteppedSineDesign)| {
+            let mut d = design();
+            f(&mut d);
+            d.generate().unwrap_err()
+        };
+        assert!(matches!(
+            with(&|d| d.frequencies_hz.clear()),
+            E::NoFrequencies
+        ));
+        assert!(matches!(
+            with(&|d| d.frequencies_hz[2] = 500.0),
+            E::FrequencyAboveNyquist { .. }
+        ));
+        assert!(matches!(
+            with(&|d| d.frequencies_hz[0] = -1.0),
+            E::InvalidFrequency { .. }
+        ));
+        assert!(matches!(
+            with(&|d| d.frequencies_hz[0] = f64::NAN),
+            E::InvalidFrequency { .. }
+        ));
+        assert!(matches!(
+            with(&|d| d.periods = 0),
+            E::ZeroCount { which: "periods" }
+        ));
+        assert!(matches!(
+            with(&|d| d.min_period_samples = 2),
+            E::PeriodTooShort { .. }
+        ));
+        assert!(matches!(
+            with(&|d| d.peak_limit_nm = 0.0),
+            E::NonPositiveLimit { .. }
+        ));
+        assert!(matches!(
+            with(&|d| d.sample_rate_hz = f64::NAN),
+            E::InvalidSampleRate { .. }
+        ));
     }
 }

@@ -22,6 +22,7 @@ pub enum ExcitationKind {
 /// estimators.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ExcitationInfo {
+    /// Signal kind; selects the estimator.
     pub kind: ExcitationKind,
     /// Samples per period (periodic signals) or per block (stepped sine). 0 if not periodic.
     #[serde(default)]

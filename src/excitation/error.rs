@@ -131,6 +131,14 @@ pub enum ExcitationError {
         /// The sweep duration [s].
         duration_s: f64,
     },
+    /// The signal would exceed [`MAX_SIGNAL_SAMPLES`](super::MAX_SIGNAL_SAMPLES) samples.
+    #[error("signal of {samples} samples is too long (at most {max_samples})")]
+    TooLong {
+        /// Requested number of samples (as f64, it may not fit a usize).
+        samples: f64,
+        /// Largest accepted number of samples.
+        max_samples: usize,
+    },
     /// The stepped-sine frequency list is empty.
     #[error("no spot frequency given")]
     NoFrequencies,

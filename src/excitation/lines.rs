@@ -7,7 +7,7 @@
 
 use rand::Rng;
 
-use super::stats::check_sample_rate;
+use super::stats::{check_length, check_sample_rate};
 use super::ExcitationError;
 
 /// Smallest accepted number of samples per period.
@@ -20,7 +20,8 @@ const EDGE_TOL: f64 = 1e-9;
 /// `band_hz = [lo, hi]` (inclusive, Hz), in increasing order.
 ///
 /// Errors: bad sample rate, period shorter than [`MIN_PERIOD_SAMPLES`], malformed band,
-/// band above Nyquist, band below one line spacing, or no line in the band.
+/// period longer than [`MAX_SIGNAL_SAMPLES`](super::MAX_SIGNAL_SAMPLES), band above
+/// Nyquist, band below one line spacing, or no line in the band.
 pub fn band_lines(
     sample_rate_hz: f64,
     period_samples: usize,
@@ -33,6 +34,7 @@ pub fn band_lines(
             min_samples: MIN_PERIOD_SAMPLES,
         });
     }
+    check_length(period_samples as f64)?;
     let [lo_hz, hi_hz] = band_hz;
     if !(lo_hz.is_finite() && hi_hz.is_finite() && lo_hz >= 0.0 && lo_hz <= hi_hz) {
         return Err(ExcitationError::InvalidBand { lo_hz, hi_hz });

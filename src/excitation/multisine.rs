@@ -204,7 +204,9 @@ fn relative_amplitudes(
                 });
             }
             check_amplitudes(a)?;
-            Ok(a.clone())
+            // Normalise to max 1 so squares cannot overflow.
+            let top = a.iter().cloned().fold(0.0, f64::max);
+            Ok(a.iter().map(|v| v / top).collect())
         }
     }
 }

@@ -235,6 +235,10 @@ fn bad_inputs_give_the_right_error() {
         E::PeriodTooShort { .. }
     ));
     assert!(matches!(
+        with(&|d| d.period_samples = usize::MAX),
+        E::TooLong { .. }
+    ));
+    assert!(matches!(
         with(&|d| d.sample_rate_hz = -1.0),
         E::InvalidSampleRate { .. }
     ));

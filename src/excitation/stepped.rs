@@ -5,7 +5,7 @@ use std::f64::consts::PI;
 use serde::{Deserialize, Serialize};
 
 use super::lines::MIN_PERIOD_SAMPLES;
-use super::stats::{check_limit, check_sample_rate, peak_abs, rms, scale_to_limits};
+use super::stats::{check_length, check_limit, check_sample_rate, peak_abs, rms, scale_to_limits};
 use super::{ExcitationError, ExcitationInfo, ExcitationKind};
 
 /// Most extra cycles tried when a spot frequency near Nyquist rounds onto the Nyquist line.
@@ -70,9 +70,13 @@ impl SteppedSineDesign {
             if f >= nyquist_hz {
                 return Err(too_high);
             }
+            // Reject absurdly low frequencies before rounding the period to usize.
+            check_length(self.min_period_samples as f64 + fs / f)?;
             grid.push(snap(fs, f, self.min_period_samples).ok_or(too_high)?);
         }
 
+        let reps_f = self.settle_periods as f64 + self.periods as f64;
+        check_length(grid.iter().map(|&(_, p)| p as f64 * reps_f).sum())?;
         let reps = self.settle_periods + self.periods;
         let total: usize = grid.iter().map(|&(_, p)| p * reps).sum();
         let mut signal = Vec::with_capacity(total);
@@ -197,6 +201,33 @@ impl SteppedSine {
             .collect()
     }
 
+    /// Description of the whole record: kind SteppedSine, not one period
+    /// (`period_samples = 0`), band `[lowest, highest]` played frequency, overall peak and
+    /// RMS. Per-block periodic descriptions are in [`SteppedSine::infos`].
+    pub fn info(&self) -> ExcitationInfo {
+        let lo = self
+            .blocks
+            .iter()
+            .map(|b| b.frequency_hz)
+            .fold(f64::INFINITY, f64::min);
+        let hi = self
+            .blocks
+            .iter()
+            .map(|b| b.frequency_hz)
+            .fold(0.0, f64::max);
+        ExcitationInfo {
+            kind: ExcitationKind::SteppedSine,
+            period_samples: 0,
+            periods: 0,
+            transient_periods: 0,
+            excited_lines: Vec::new(),
+            band_hz: (!self.blocks.is_empty()).then_some([lo, hi]),
+            peak_nm: Some(peak_abs(&self.signal)),
+            rms_nm: Some(rms(&self.signal)),
+            design: Some("stepped_sine".to_string()),
+        }
+    }
+
     /// Per-block descriptions, in playing order.
     pub fn infos(&self) -> Vec<ExcitationInfo> {
         self.blocks.iter().map(SteppedBlock::info).collect()
@@ -265,6 +296,10 @@ mod tests {
         }
         assert_eq!(next, s.signal.len());
         assert_eq!(s.infos().len(), 6);
+        let all = s.info();
+        assert_eq!(all.kind, ExcitationKind::SteppedSine);
+        assert!((all.rms_nm.unwrap() - 1.0).abs() < 1e-12);
+        assert_eq!(all.band_hz.unwrap()[0], s.blocks[0].frequency_hz);
     }
 
     #[test]
@@ -317,6 +352,14 @@ mod tests {
         assert!(matches!(
             with(&|d| d.sample_rate_hz = f64::NAN),
             E::InvalidSampleRate { .. }
+        ));
+        assert!(matches!(
+            with(&|d| d.frequencies_hz[0] = 1e-300),
+            E::TooLong { .. }
+        ));
+        assert!(matches!(
+            with(&|d| d.periods = usize::MAX),
+            E::TooLong { .. }
         ));
     }
 }

@@ -12,20 +12,20 @@ use super::{ExcitationError, ExcitationInfo, ExcitationKind};
 /// Design of an exponential sweep `x(t) = a(t) sin(phi(t))` [N m] from `f0_hz` to `f1_hz`
 /// over `duration_s`, sampled at `t_n = n / fs`, `n = 0 .. round(duration_s * fs)`.
 ///
-/// The instantaneous frequency is `f(t) = f0 (f1 / f0)^(t / T)` [Hz] and the phase
-/// `phi(t) = 2 pi f0 L (exp(t / L) - 1)` [rad] with `L = T / ln(f1 / f0)`. Downward sweeps
+/// The instantaneous frequency is `f(t) = f0 (f1 / f0)^(t / T)` \[Hz\] and the phase
+/// `phi(t) = 2 pi f0 L (exp(t / L) - 1)` \[rad\] with `L = T / ln(f1 / f0)`. Downward sweeps
 /// (`f1 < f0`) are allowed.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ChirpDesign {
-    /// Sample rate [Hz].
+    /// Sample rate \[Hz\].
     pub sample_rate_hz: f64,
-    /// Start frequency [Hz] (> 0, below Nyquist).
+    /// Start frequency \[Hz\] (> 0, below Nyquist).
     pub f0_hz: f64,
-    /// End frequency [Hz] (> 0, below Nyquist, != f0).
+    /// End frequency \[Hz\] (> 0, below Nyquist, != f0).
     pub f1_hz: f64,
-    /// Sweep duration `T` [s].
+    /// Sweep duration `T` \[s\].
     pub duration_s: f64,
-    /// Length [s] of the raised-cosine fade-in and fade-out (0 = none, at most `T / 2`).
+    /// Length \[s\] of the raised-cosine fade-in and fade-out (0 = none, at most `T / 2`).
     pub taper_s: f64,
     /// Amplitude envelope `a(t) ∝ f(t)^exponent` (0 = constant amplitude).
     pub amplitude_exponent: f64,
@@ -133,25 +133,25 @@ impl ChirpDesign {
 /// A generated exponential sweep [N m].
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Chirp {
-    /// Sample rate [Hz].
+    /// Sample rate \[Hz\].
     pub sample_rate_hz: f64,
-    /// Start frequency [Hz].
+    /// Start frequency \[Hz\].
     pub f0_hz: f64,
-    /// End frequency [Hz].
+    /// End frequency \[Hz\].
     pub f1_hz: f64,
-    /// Sweep duration `T` [s].
+    /// Sweep duration `T` \[s\].
     pub duration_s: f64,
     /// The samples [N m], `signal[n]` at `t = n / fs`.
     pub signal: Vec<f64>,
 }
 
 impl Chirp {
-    /// Instantaneous frequency `f0 (f1 / f0)^(t / T)` [Hz] at time `t` [s].
+    /// Instantaneous frequency `f0 (f1 / f0)^(t / T)` \[Hz\] at time `t` \[s\].
     pub fn instantaneous_frequency_hz(&self, t_s: f64) -> f64 {
         self.f0_hz * (self.f1_hz / self.f0_hz).powf(t_s / self.duration_s)
     }
 
-    /// Sweep phase `phi(t)` [rad] at time `t` [s] (the signal is `a(t) sin(phi(t))`).
+    /// Sweep phase `phi(t)` \[rad\] at time `t` \[s\] (the signal is `a(t) sin(phi(t))`).
     pub fn phase_rad(&self, t_s: f64) -> f64 {
         let l = self.duration_s / (self.f1_hz / self.f0_hz).ln();
         2.0 * PI * self.f0_hz * l * ((t_s / l).exp() - 1.0)
@@ -193,7 +193,7 @@ impl Chirp {
 mod tests {
     use super::*;
 
-    /// Times [s] of the zero crossings of `x`, linearly interpolated.
+    /// Times \[s\] of the zero crossings of `x`, linearly interpolated.
     fn zero_crossings(x: &[f64], fs: f64) -> Vec<f64> {
         x.windows(2)
             .enumerate()

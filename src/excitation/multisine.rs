@@ -65,11 +65,11 @@ impl PhaseDesign {
 /// `N = period_samples`, line `k` at `k * sample_rate_hz / N` Hz.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct MultisineDesign {
-    /// Sample rate [Hz].
+    /// Sample rate \[Hz\].
     pub sample_rate_hz: f64,
     /// Samples per period `N` (>= 4); sets the line spacing `fs / N`.
     pub period_samples: usize,
-    /// Excited band `[lo, hi]` [Hz], inclusive; DC and the Nyquist line are never excited.
+    /// Excited band `[lo, hi]` \[Hz\], inclusive; DC and the Nyquist line are never excited.
     pub band_hz: [f64; 2],
     /// Relative amplitude shape over the excited lines.
     pub amplitude: AmplitudeShape,
@@ -105,7 +105,7 @@ impl MultisineDesign {
         }
     }
 
-    /// Line spacing `fs / N` [Hz].
+    /// Line spacing `fs / N` \[Hz\].
     pub fn line_spacing_hz(&self) -> f64 {
         self.sample_rate_hz / self.period_samples as f64
     }
@@ -231,7 +231,7 @@ fn check_amplitudes(a: &[f64]) -> Result<(), ExcitationError> {
 /// One period of a generated multisine [N m] and its line spectrum.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Multisine {
-    /// Sample rate [Hz].
+    /// Sample rate \[Hz\].
     pub sample_rate_hz: f64,
     /// One period [N m]; `period.len()` is the period length `N` in samples.
     pub period: Vec<f64>,
@@ -242,7 +242,7 @@ pub struct Multisine {
     pub detection_lines: Vec<usize>,
     /// Cosine amplitude `A_j` [N m] per excited line (same order as `excited_lines`).
     pub amplitudes_nm: Vec<f64>,
-    /// Cosine phase `phi_j` [rad] per excited line, in `(-pi, pi]`.
+    /// Cosine phase `phi_j` \[rad\] per excited line, in `(-pi, pi]`.
     pub phases_rad: Vec<f64>,
     /// Design name, e.g. `"schroeder"`, `"random_phase"`, `"odd_random_phase"`.
     pub design: String,
@@ -254,12 +254,12 @@ impl Multisine {
         self.period.len()
     }
 
-    /// Line spacing `fs / N` [Hz].
+    /// Line spacing `fs / N` \[Hz\].
     pub fn line_spacing_hz(&self) -> f64 {
         self.sample_rate_hz / self.period.len() as f64
     }
 
-    /// Frequencies [Hz] of the excited lines.
+    /// Frequencies \[Hz\] of the excited lines.
     pub fn excited_frequencies_hz(&self) -> Vec<f64> {
         let df = self.line_spacing_hz();
         self.excited_lines.iter().map(|&k| k as f64 * df).collect()

@@ -51,7 +51,7 @@ pub(crate) fn check_limit(which: &'static str, value_nm: f64) -> Result<(), Exci
     }
 }
 
-/// Checks that a sample rate [Hz] is positive and finite.
+/// Checks that a sample rate \[Hz\] is positive and finite.
 pub(crate) fn check_sample_rate(sample_rate_hz: f64) -> Result<(), ExcitationError> {
     if sample_rate_hz.is_finite() && sample_rate_hz > 0.0 {
         Ok(())

@@ -20,11 +20,11 @@ const MAX_LINE_TRIES: usize = 1000;
 /// periods, starting and ending at zero torque (`x = A sin(2 pi line n / P)`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SteppedSineDesign {
-    /// Sample rate [Hz].
+    /// Sample rate \[Hz\].
     pub sample_rate_hz: f64,
-    /// Spot frequencies [Hz], played in the given order (each > 0 and below Nyquist).
+    /// Spot frequencies \[Hz\], played in the given order (each > 0 and below Nyquist).
     pub frequencies_hz: Vec<f64>,
-    /// Lower bound on the period length `P` [samples] (>= 4); sets the line spacing
+    /// Lower bound on the period length `P` \[samples\] (>= 4); sets the line spacing
     /// `fs / P` and so the frequency resolution of each block.
     pub min_period_samples: usize,
     /// Steady-state periods per block (>= 1), processed by the estimator.
@@ -125,9 +125,9 @@ fn snap(fs: f64, f: f64, min_p: usize) -> Option<(usize, usize)> {
 /// `period_samples` samples holding exactly `line` cycles of `amplitude_nm * sin(.)`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SteppedBlock {
-    /// Requested spot frequency [Hz].
+    /// Requested spot frequency \[Hz\].
     pub requested_hz: f64,
-    /// Played frequency `line * fs / period_samples` [Hz].
+    /// Played frequency `line * fs / period_samples` \[Hz\].
     pub frequency_hz: f64,
     /// Index of the block's first sample in [`SteppedSine::signal`] (settle periods included).
     pub start: usize,
@@ -148,7 +148,7 @@ pub struct SteppedBlock {
 }
 
 impl SteppedBlock {
-    /// Block length [samples], settle periods included.
+    /// Block length \[samples\], settle periods included.
     pub fn len(&self) -> usize {
         (self.settle_periods + self.periods) * self.period_samples
     }
@@ -183,7 +183,7 @@ impl SteppedBlock {
 /// A generated stepped sine [N m]: the blocks back to back.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SteppedSine {
-    /// Sample rate [Hz].
+    /// Sample rate \[Hz\].
     pub sample_rate_hz: f64,
     /// All blocks back to back [N m].
     pub signal: Vec<f64>,

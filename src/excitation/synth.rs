@@ -57,7 +57,7 @@ impl LineSynth {
         }
     }
 
-    /// Writes the period with the target amplitudes and `phases` [rad] (one per line) to `out`.
+    /// Writes the period with the target amplitudes and `phases` \[rad\] (one per line) to `out`.
     pub(crate) fn synthesize(
         &mut self,
         phases: &[f64],
@@ -95,7 +95,7 @@ impl LineSynth {
             .map_err(fft_err)
     }
 
-    /// Phases [rad] of the excited lines of the cosine series of `x` (one per line).
+    /// Phases \[rad\] of the excited lines of the cosine series of `x` (one per line).
     /// `x` is used as FFT scratch and left unspecified.
     pub(crate) fn line_phases(&mut self, x: &mut [f64]) -> Result<Vec<f64>, ExcitationError> {
         self.r2c

@@ -22,6 +22,7 @@ pub enum ExcitationKind {
 /// estimators.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ExcitationInfo {
+    /// Signal kind; selects the estimator.
     pub kind: ExcitationKind,
     /// Samples per period (periodic signals) or per block (stepped sine). 0 if not periodic.
     #[serde(default)]
@@ -36,7 +37,7 @@ pub struct ExcitationInfo {
     /// Empty when not known: the estimator then infers them from the input spectrum.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub excited_lines: Vec<usize>,
-    /// Lowest and highest excited frequency [Hz], for information.
+    /// Lowest and highest excited frequency \[Hz\], for information.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub band_hz: Option<[f64; 2]>,
     /// Peak |torque| [N m].

@@ -7,7 +7,7 @@
 
 use rand::Rng;
 
-use super::stats::check_sample_rate;
+use super::stats::{check_length, check_sample_rate};
 use super::ExcitationError;
 
 /// Smallest accepted number of samples per period.
@@ -20,7 +20,8 @@ const EDGE_TOL: f64 = 1e-9;
 /// `band_hz = [lo, hi]` (inclusive, Hz), in increasing order.
 ///
 /// Errors: bad sample rate, period shorter than [`MIN_PERIOD_SAMPLES`], malformed band,
-/// band above Nyquist, band below one line spacing, or no line in the band.
+/// period longer than [`MAX_SIGNAL_SAMPLES`](super::MAX_SIGNAL_SAMPLES), band above
+/// Nyquist, band below one line spacing, or no line in the band.
 pub fn band_lines(
     sample_rate_hz: f64,
     period_samples: usize,
@@ -33,6 +34,7 @@ pub fn band_lines(
             min_samples: MIN_PERIOD_SAMPLES,
         });
     }
+    check_length(period_samples as f64)?;
     let [lo_hz, hi_hz] = band_hz;
     if !(lo_hz.is_finite() && hi_hz.is_finite() && lo_hz >= 0.0 && lo_hz <= hi_hz) {
         return Err(ExcitationError::InvalidBand { lo_hz, hi_hz });
@@ -97,22 +99,52 @@ mod tests {
     #[test]
     fn band_edges_snap_to_lines() {
         // fs = 1000, N = 1000: spacing 1 Hz.
-        assert_eq!(band_lines(1000.0, 1000, [2.0, 5.0]).unwrap(), vec![2, 3, 4, 5]);
+        assert_eq!(
+            band_lines(1000.0, 1000, [2.0, 5.0]).unwrap(),
+            vec![2, 3, 4, 5]
+        );
         assert_eq!(band_lines(1000.0, 1000, [0.0, 1.5]).unwrap(), vec![1]);
         // The Nyquist line (k = 500) is never used.
-        assert_eq!(*band_lines(1000.0, 1000, [498.0, 500.0]).unwrap().last().unwrap(), 499);
+        assert_eq!(
+            *band_lines(1000.0, 1000, [498.0, 500.0])
+                .unwrap()
+                .last()
+                .unwrap(),
+            499
+        );
     }
 
     #[test]
     fn band_errors() {
         use ExcitationError as E;
-        assert!(matches!(band_lines(1000.0, 1000, [1.0, 600.0]), Err(E::BandAboveNyquist { .. })));
-        assert!(matches!(band_lines(1000.0, 100, [0.0, 5.0]), Err(E::BandBelowLineSpacing { .. })));
-        assert!(matches!(band_lines(1000.0, 100, [11.0, 19.0]), Err(E::NoLineInBand { .. })));
-        assert!(matches!(band_lines(1000.0, 100, [30.0, 20.0]), Err(E::InvalidBand { .. })));
-        assert!(matches!(band_lines(1000.0, 100, [f64::NAN, 20.0]), Err(E::InvalidBand { .. })));
-        assert!(matches!(band_lines(1000.0, 3, [0.0, 400.0]), Err(E::PeriodTooShort { .. })));
-        assert!(matches!(band_lines(0.0, 100, [0.0, 400.0]), Err(E::InvalidSampleRate { .. })));
+        assert!(matches!(
+            band_lines(1000.0, 1000, [1.0, 600.0]),
+            Err(E::BandAboveNyquist { .. })
+        ));
+        assert!(matches!(
+            band_lines(1000.0, 100, [0.0, 5.0]),
+            Err(E::BandBelowLineSpacing { .. })
+        ));
+        assert!(matches!(
+            band_lines(1000.0, 100, [11.0, 19.0]),
+            Err(E::NoLineInBand { .. })
+        ));
+        assert!(matches!(
+            band_lines(1000.0, 100, [30.0, 20.0]),
+            Err(E::InvalidBand { .. })
+        ));
+        assert!(matches!(
+            band_lines(1000.0, 100, [f64::NAN, 20.0]),
+            Err(E::InvalidBand { .. })
+        ));
+        assert!(matches!(
+            band_lines(1000.0, 3, [0.0, 400.0]),
+            Err(E::PeriodTooShort { .. })
+        ));
+        assert!(matches!(
+            band_lines(0.0, 100, [0.0, 400.0]),
+            Err(E::InvalidSampleRate { .. })
+        ));
     }
 
     #[test]

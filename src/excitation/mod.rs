@@ -26,5 +26,5 @@ pub use description::{ExcitationInfo, ExcitationKind};
 pub use error::ExcitationError;
 pub use lines::{band_lines, MIN_PERIOD_SAMPLES};
 pub use multisine::{AmplitudeShape, Multisine, MultisineDesign, PhaseDesign};
-pub use stats::{crest_factor, peak_abs, rms};
+pub use stats::{crest_factor, peak_abs, rms, MAX_SIGNAL_SAMPLES};
 pub use stepped::{SteppedBlock, SteppedSine, SteppedSineDesign};

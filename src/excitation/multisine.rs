@@ -65,11 +65,11 @@ impl PhaseDesign {
 /// `N = period_samples`, line `k` at `k * sample_rate_hz / N` Hz.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct MultisineDesign {
-    /// Sample rate [Hz].
+    /// Sample rate \[Hz\].
     pub sample_rate_hz: f64,
     /// Samples per period `N` (>= 4); sets the line spacing `fs / N`.
     pub period_samples: usize,
-    /// Excited band `[lo, hi]` [Hz], inclusive; DC and the Nyquist line are never excited.
+    /// Excited band `[lo, hi]` \[Hz\], inclusive; DC and the Nyquist line are never excited.
     pub band_hz: [f64; 2],
     /// Relative amplitude shape over the excited lines.
     pub amplitude: AmplitudeShape,
@@ -105,7 +105,7 @@ impl MultisineDesign {
         }
     }
 
-    /// Line spacing `fs / N` [Hz].
+    /// Line spacing `fs / N` \[Hz\].
     pub fn line_spacing_hz(&self) -> f64 {
         self.sample_rate_hz / self.period_samples as f64
     }
@@ -120,7 +120,9 @@ impl MultisineDesign {
 
         let (excited, detection, mut rng) = match self.phases {
             PhaseDesign::Schroeder => (candidates, Vec::new(), None),
-            PhaseDesign::Random { seed } => (candidates, Vec::new(), Some(StdRng::seed_from_u64(seed))),
+            PhaseDesign::Random { seed } => {
+                (candidates, Vec::new(), Some(StdRng::seed_from_u64(seed)))
+            }
             PhaseDesign::OddRandom { seed, group } => {
                 if group < 2 {
                     return Err(ExcitationError::InvalidGroup { group });
@@ -140,8 +142,12 @@ impl MultisineDesign {
 
         let amps = relative_amplitudes(&self.amplitude, &excited)?;
         // Lines given zero amplitude are not excited.
-        let (excited, amps): (Vec<usize>, Vec<f64>) =
-            excited.iter().zip(&amps).filter(|(_, &a)| a > 0.0).map(|(&k, &a)| (k, a)).unzip();
+        let (excited, amps): (Vec<usize>, Vec<f64>) = excited
+            .iter()
+            .zip(&amps)
+            .filter(|(_, &a)| a > 0.0)
+            .map(|(&k, &a)| (k, a))
+            .unzip();
         let phases = match rng.as_mut() {
             None => schroeder_phases(&excited, &amps),
             Some(r) => random_phases(excited.len(), r),
@@ -169,16 +175,24 @@ impl MultisineDesign {
 }
 
 /// Relative amplitudes per excited line for a shape; validates custom lists and exponents.
-fn relative_amplitudes(shape: &AmplitudeShape, lines: &[usize]) -> Result<Vec<f64>, ExcitationError> {
+fn relative_amplitudes(
+    shape: &AmplitudeShape,
+    lines: &[usize],
+) -> Result<Vec<f64>, ExcitationError> {
     match shape {
         AmplitudeShape::Flat => Ok(vec![1.0; lines.len()]),
         AmplitudeShape::PowerLaw { exponent } => {
             if !exponent.is_finite() {
-                return Err(ExcitationError::InvalidExponent { exponent: *exponent });
+                return Err(ExcitationError::InvalidExponent {
+                    exponent: *exponent,
+                });
             }
             // f = k * spacing: the common factor cancels; relative to the first line.
             let k0 = lines[0] as f64;
-            let amps: Vec<f64> = lines.iter().map(|&k| (k as f64 / k0).powf(*exponent)).collect();
+            let amps: Vec<f64> = lines
+                .iter()
+                .map(|&k| (k as f64 / k0).powf(*exponent))
+                .collect();
             check_amplitudes(&amps)?;
             Ok(amps)
         }
@@ -190,17 +204,26 @@ fn relative_amplitudes(shape: &AmplitudeShape, lines: &[usize]) -> Result<Vec<f6
                 });
             }
             check_amplitudes(a)?;
-            Ok(a.clone())
+            // Normalise to max 1 so squares cannot overflow.
+            let top = a.iter().cloned().fold(0.0, f64::max);
+            Ok(a.iter().map(|v| v / top).collect())
         }
     }
 }
 
 fn check_amplitudes(a: &[f64]) -> Result<(), ExcitationError> {
-    if let Some((index, &value)) = a.iter().enumerate().find(|(_, v)| !(v.is_finite() && **v >= 0.0)) {
+    if let Some((index, &value)) = a
+        .iter()
+        .enumerate()
+        .find(|(_, v)| !(v.is_finite() && **v >= 0.0))
+    {
         return Err(ExcitationError::InvalidAmplitude { index, value });
     }
     if a.iter().all(|&v| v == 0.0) {
-        return Err(ExcitationError::InvalidAmplitude { index: 0, value: 0.0 });
+        return Err(ExcitationError::InvalidAmplitude {
+            index: 0,
+            value: 0.0,
+        });
     }
     Ok(())
 }
@@ -208,7 +231,7 @@ fn check_amplitudes(a: &[f64]) -> Result<(), ExcitationError> {
 /// One period of a generated multisine [N m] and its line spectrum.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Multisine {
-    /// Sample rate [Hz].
+    /// Sample rate \[Hz\].
     pub sample_rate_hz: f64,
     /// One period [N m]; `period.len()` is the period length `N` in samples.
     pub period: Vec<f64>,
@@ -219,7 +242,7 @@ pub struct Multisine {
     pub detection_lines: Vec<usize>,
     /// Cosine amplitude `A_j` [N m] per excited line (same order as `excited_lines`).
     pub amplitudes_nm: Vec<f64>,
-    /// Cosine phase `phi_j` [rad] per excited line, in `(-pi, pi]`.
+    /// Cosine phase `phi_j` \[rad\] per excited line, in `(-pi, pi]`.
     pub phases_rad: Vec<f64>,
     /// Design name, e.g. `"schroeder"`, `"random_phase"`, `"odd_random_phase"`.
     pub design: String,
@@ -231,12 +254,12 @@ impl Multisine {
         self.period.len()
     }
 
-    /// Line spacing `fs / N` [Hz].
+    /// Line spacing `fs / N` \[Hz\].
     pub fn line_spacing_hz(&self) -> f64 {
         self.sample_rate_hz / self.period.len() as f64
     }
 
-    /// Frequencies [Hz] of the excited lines.
+    /// Frequencies \[Hz\] of the excited lines.
     pub fn excited_frequencies_hz(&self) -> Vec<f64> {
         let df = self.line_spacing_hz();
         self.excited_lines.iter().map(|&k| k as f64 * df).collect()

@@ -17,12 +17,18 @@ fn check_spectrum(ms: &Multisine) {
     for (k, &a) in amp.iter().enumerate() {
         if next < ms.excited_lines.len() && ms.excited_lines[next] == k {
             let want = ms.amplitudes_nm[next];
-            assert!((a - want).abs() <= 1e-9 * want, "line {k}: amplitude {a} vs {want}");
+            assert!(
+                (a - want).abs() <= 1e-9 * want,
+                "line {k}: amplitude {a} vs {want}"
+            );
             let d = (phase[k] - ms.phases_rad[next]).rem_euclid(2.0 * PI);
             assert!(d.min(2.0 * PI - d) < 1e-9, "line {k}: phase");
             next += 1;
         } else {
-            assert!(a < 1e-9 * peak_line, "non-excited line {k} has amplitude {a}");
+            assert!(
+                a < 1e-9 * peak_line,
+                "non-excited line {k} has amplitude {a}"
+            );
         }
     }
     assert_eq!(next, ms.excited_lines.len());
@@ -50,7 +56,10 @@ fn flat_schroeder_has_flat_spectrum_at_excited_lines_only() {
     assert!(ms.detection_lines.is_empty());
     check_spectrum(&ms);
     let a0 = ms.amplitudes_nm[0];
-    assert!(ms.amplitudes_nm.iter().all(|a| (a - a0).abs() <= 1e-12 * a0));
+    assert!(ms
+        .amplitudes_nm
+        .iter()
+        .all(|a| (a - a0).abs() <= 1e-12 * a0));
 }
 
 #[test]
@@ -141,10 +150,16 @@ fn crest_reduction_lowers_random_phase_crest_and_never_raises_it() {
             d.crest_iterations = it;
             let ms = d.generate().unwrap();
             let cf = ms.crest_factor();
-            assert!(cf <= last + 1e-12, "seed {seed}, {it} iterations: {cf} > {last}");
+            assert!(
+                cf <= last + 1e-12,
+                "seed {seed}, {it} iterations: {cf} > {last}"
+            );
             last = cf;
         }
-        assert!(last < 2.0 || last <= 0.75 * start, "seed {seed}: {start} -> {last}");
+        assert!(
+            last < 2.0 || last <= 0.75 * start,
+            "seed {seed}: {start} -> {last}"
+        );
         println!("seed {seed}: crest {start:.3} -> {last:.3}");
     }
 }
@@ -166,7 +181,10 @@ fn limits_hold_and_the_binding_one_is_met() {
     assert!(ms.peak_nm() <= 3.0);
     let info = ms.info(4, 2);
     assert_eq!(info.kind, ExcitationKind::Multisine);
-    assert_eq!((info.period_samples, info.periods, info.transient_periods), (1000, 4, 2));
+    assert_eq!(
+        (info.period_samples, info.periods, info.transient_periods),
+        (1000, 4, 2)
+    );
     assert_eq!(info.excited_lines, ms.excited_lines);
     assert_eq!(info.band_hz, Some([1.0, 100.0]));
     assert!((info.rms_nm.unwrap() - 0.5).abs() < 1e-12);
@@ -184,15 +202,46 @@ fn bad_inputs_give_the_right_error() {
         f(&mut d);
         d.generate().unwrap_err()
     };
-    assert!(matches!(with(&|d| d.peak_limit_nm = 0.0), E::NonPositiveLimit { which: "peak", .. }));
-    assert!(matches!(with(&|d| d.rms_limit_nm = -1.0), E::NonPositiveLimit { which: "rms", .. }));
-    assert!(matches!(with(&|d| d.rms_limit_nm = f64::NAN), E::NonPositiveLimit { .. }));
-    assert!(matches!(with(&|d| d.band_hz = [1.0, 600.0]), E::BandAboveNyquist { .. }));
-    assert!(matches!(with(&|d| d.band_hz = [0.0, 0.5]), E::BandBelowLineSpacing { .. }));
-    assert!(matches!(with(&|d| d.band_hz = [10.2, 10.8]), E::NoLineInBand { .. }));
-    assert!(matches!(with(&|d| d.band_hz = [5.0, 1.0]), E::InvalidBand { .. }));
-    assert!(matches!(with(&|d| d.period_samples = 2), E::PeriodTooShort { .. }));
-    assert!(matches!(with(&|d| d.sample_rate_hz = -1.0), E::InvalidSampleRate { .. }));
+    assert!(matches!(
+        with(&|d| d.peak_limit_nm = 0.0),
+        E::NonPositiveLimit { which: "peak", .. }
+    ));
+    assert!(matches!(
+        with(&|d| d.rms_limit_nm = -1.0),
+        E::NonPositiveLimit { which: "rms", .. }
+    ));
+    assert!(matches!(
+        with(&|d| d.rms_limit_nm = f64::NAN),
+        E::NonPositiveLimit { .. }
+    ));
+    assert!(matches!(
+        with(&|d| d.band_hz = [1.0, 600.0]),
+        E::BandAboveNyquist { .. }
+    ));
+    assert!(matches!(
+        with(&|d| d.band_hz = [0.0, 0.5]),
+        E::BandBelowLineSpacing { .. }
+    ));
+    assert!(matches!(
+        with(&|d| d.band_hz = [10.2, 10.8]),
+        E::NoLineInBand { .. }
+    ));
+    assert!(matches!(
+        with(&|d| d.band_hz = [5.0, 1.0]),
+        E::InvalidBand { .. }
+    ));
+    assert!(matches!(
+        with(&|d| d.period_samples = 2),
+        E::PeriodTooShort { .. }
+    ));
+    assert!(matches!(
+        with(&|d| d.period_samples = usize::MAX),
+        E::TooLong { .. }
+    ));
+    assert!(matches!(
+        with(&|d| d.sample_rate_hz = -1.0),
+        E::InvalidSampleRate { .. }
+    ));
     assert!(matches!(
         with(&|d| {
             d.band_hz = [10.0, 10.0];
@@ -206,7 +255,10 @@ fn bad_inputs_give_the_right_error() {
     ));
     assert!(matches!(
         with(&|d| d.amplitude = AmplitudeShape::Custom(vec![1.0; 3])),
-        E::AmplitudeLengthMismatch { expected: 100, got: 3 }
+        E::AmplitudeLengthMismatch {
+            expected: 100,
+            got: 3
+        }
     ));
     assert!(matches!(
         with(&|d| d.amplitude = AmplitudeShape::Custom(vec![0.0; 100])),
@@ -221,7 +273,9 @@ fn bad_inputs_give_the_right_error() {
         E::InvalidAmplitude { index: 7, .. }
     ));
     assert!(matches!(
-        with(&|d| d.amplitude = AmplitudeShape::PowerLaw { exponent: f64::INFINITY }),
+        with(&|d| d.amplitude = AmplitudeShape::PowerLaw {
+            exponent: f64::INFINITY
+        }),
         E::InvalidExponent { .. }
     ));
 }

@@ -4,7 +4,7 @@ use std::f64::consts::PI;
 
 use rand::Rng;
 
-/// Schroeder phases [rad] for lines `lines` (increasing DFT indices) with relative amplitudes
+/// Schroeder phases \[rad\] for lines `lines` (increasing DFT indices) with relative amplitudes
 /// `amps` (one per line): the group delay at line `k` is the period times the fraction of
 /// power below `k`, i.e. `phi_j = phi_{j-1} - 2 pi (k_j - k_{j-1}) P_{j-1}` with `P` the
 /// cumulative normalised power. For a flat band of consecutive lines this is the classical
@@ -25,7 +25,7 @@ pub(crate) fn schroeder_phases(lines: &[usize], amps: &[f64]) -> Vec<f64> {
     phases
 }
 
-/// `count` independent phases uniform on `[0, 2 pi)` [rad].
+/// `count` independent phases uniform on `[0, 2 pi)` \[rad\].
 pub(crate) fn random_phases<R: Rng>(count: usize, rng: &mut R) -> Vec<f64> {
     (0..count).map(|_| 2.0 * PI * rng.random::<f64>()).collect()
 }

@@ -2,6 +2,22 @@
 
 use super::ExcitationError;
 
+/// Largest number of samples any generator produces (a period, a sweep, a stepped-sine
+/// record), about 8.6 GB of `f64`; longer requests fail with [`ExcitationError::TooLong`].
+pub const MAX_SIGNAL_SAMPLES: usize = 1 << 30;
+
+/// Checks that `samples` does not exceed [`MAX_SIGNAL_SAMPLES`].
+pub(crate) fn check_length(samples: f64) -> Result<(), ExcitationError> {
+    if samples <= MAX_SIGNAL_SAMPLES as f64 {
+        Ok(())
+    } else {
+        Err(ExcitationError::TooLong {
+            samples,
+            max_samples: MAX_SIGNAL_SAMPLES,
+        })
+    }
+}
+
 /// Root mean square of `x` (same unit as `x`, e.g. N m). Returns 0 for an empty slice.
 pub fn rms(x: &[f64]) -> f64 {
     if x.is_empty() {
@@ -35,7 +51,7 @@ pub(crate) fn check_limit(which: &'static str, value_nm: f64) -> Result<(), Exci
     }
 }
 
-/// Checks that a sample rate [Hz] is positive and finite.
+/// Checks that a sample rate \[Hz\] is positive and finite.
 pub(crate) fn check_sample_rate(sample_rate_hz: f64) -> Result<(), ExcitationError> {
     if sample_rate_hz.is_finite() && sample_rate_hz > 0.0 {
         Ok(())

@@ -57,9 +57,15 @@ impl LineSynth {
         }
     }
 
-    /// Writes the period with the target amplitudes and `phases` [rad] (one per line) to `out`.
-    pub(crate) fn synthesize(&mut self, phases: &[f64], out: &mut [f64]) -> Result<(), ExcitationError> {
-        self.spec.iter_mut().for_each(|c| *c = Complex64::new(0.0, 0.0));
+    /// Writes the period with the target amplitudes and `phases` \[rad\] (one per line) to `out`.
+    pub(crate) fn synthesize(
+        &mut self,
+        phases: &[f64],
+        out: &mut [f64],
+    ) -> Result<(), ExcitationError> {
+        self.spec
+            .iter_mut()
+            .for_each(|c| *c = Complex64::new(0.0, 0.0));
         for ((&k, &h), &phi) in self.lines.iter().zip(&self.half_amps).zip(phases) {
             self.spec[k] = Complex64::from_polar(h, phi);
         }
@@ -89,7 +95,7 @@ impl LineSynth {
             .map_err(fft_err)
     }
 
-    /// Phases [rad] of the excited lines of the cosine series of `x` (one per line).
+    /// Phases \[rad\] of the excited lines of the cosine series of `x` (one per line).
     /// `x` is used as FFT scratch and left unspecified.
     pub(crate) fn line_phases(&mut self, x: &mut [f64]) -> Result<Vec<f64>, ExcitationError> {
         self.r2c
@@ -106,7 +112,11 @@ impl LineSynth {
     /// factor, the input included) is kept, so the crest factor never increases and the
     /// amplitude spectrum is always exactly the target one.
     /// Returns the final crest factor.
-    pub(crate) fn reduce_crest(&mut self, x: &mut [f64], iterations: usize) -> Result<f64, ExcitationError> {
+    pub(crate) fn reduce_crest(
+        &mut self,
+        x: &mut [f64],
+        iterations: usize,
+    ) -> Result<f64, ExcitationError> {
         let mut best_cf = crest_factor(x);
         if iterations == 0 {
             return Ok(best_cf);

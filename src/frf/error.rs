@@ -5,12 +5,12 @@ use thiserror::Error;
 /// Why an FRF could not be estimated. Every variant carries the numbers needed to act on it.
 #[derive(Debug, Clone, PartialEq, Error)]
 pub enum FrfError {
-    /// Input (torque) and output signals have different lengths [samples].
+    /// Input (torque) and output signals have different lengths \[samples\].
     #[error("input and output lengths differ: u has {u} samples, y has {y}")]
     LengthMismatch {
-        /// Length of the input signal [samples].
+        /// Length of the input signal \[samples\].
         u: usize,
-        /// Length of the output signal [samples].
+        /// Length of the output signal \[samples\].
         y: usize,
     },
     /// Not enough data for one estimate: `needed` and `got` are samples (or periods/segments,

@@ -47,7 +47,7 @@ struct LineStats {
 /// nonlinearities, even lines for even ones.
 #[derive(Debug, Clone, PartialEq)]
 pub struct NonExcitedLevels {
-    /// Frequencies of the non-excited lines [Hz] (ascending).
+    /// Frequencies of the non-excited lines \[Hz\] (ascending).
     pub freq_hz: Vec<f64>,
     /// DFT line indices of the non-excited lines within one period: every line strictly
     /// between the lowest and the highest excited line that is not excited.
@@ -58,7 +58,7 @@ pub struct NonExcitedLevels {
     /// divided by the number of periods [(unit of y)^2]; `INFINITY` with fewer than 2
     /// periods.
     pub noise_var_y: Vec<f64>,
-    /// Frequencies of the excited lines [Hz].
+    /// Frequencies of the excited lines \[Hz\].
     pub excited_freq_hz: Vec<f64>,
     /// Excited line indices.
     pub excited_line: Vec<usize>,
@@ -112,7 +112,7 @@ impl std::fmt::Debug for PeriodicEstimator {
 }
 
 impl PeriodicEstimator {
-    /// Plan an estimator for periods of `period_samples` samples at `sample_rate_hz` [Hz].
+    /// Plan an estimator for periods of `period_samples` samples at `sample_rate_hz` \[Hz\].
     ///
     /// `excited_lines` are DFT line indices within one period (`0..=period_samples/2`,
     /// any order, duplicates ignored). If empty, the excited lines are inferred at

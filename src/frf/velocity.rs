@@ -22,7 +22,7 @@ use num_complex::Complex64;
 use std::f64::consts::PI;
 
 /// Backward-difference velocity `v[k] = (p[k] - p[k-1]) * fs` [rad/s] from sampled
-/// position `p` [rad] at sample rate `fs` [Hz].
+/// position `p` \[rad\] at sample rate `fs` \[Hz\].
 ///
 /// The output has the same length as the input. Sample 0 has no predecessor; it is defined
 /// with `p[-1] := p[0]`, i.e. `v[0] = 0` (the axis is taken to be at rest before the record;

@@ -157,7 +157,7 @@ impl std::fmt::Debug for WelchH1 {
 impl WelchH1 {
     /// Plan an estimator with segments of `nperseg` samples overlapping by
     /// `overlap_samples` (`< nperseg`; `nperseg / 2` is the usual choice for Hann), at
-    /// sample rate `fs` [Hz]. The FRF kind defaults to [`FrfKind::Other`]; set it with
+    /// sample rate `fs` \[Hz\]. The FRF kind defaults to [`FrfKind::Other`]; set it with
     /// [`with_kind`](Self::with_kind).
     ///
     /// Errors: `InvalidParameter` for `nperseg < 4`, `overlap_samples >= nperseg` or a bad
@@ -226,7 +226,7 @@ impl WelchH1 {
         self
     }
 
-    /// Segment length [samples].
+    /// Segment length \[samples\].
     pub fn nperseg(&self) -> usize {
         self.nperseg
     }
@@ -367,7 +367,7 @@ impl WelchH1 {
 }
 
 /// Batch Welch H1 with a Hann window: segments of `nperseg` samples overlapping by
-/// `overlap` samples, at sample rate `fs` [Hz]; kind [`FrfKind::Other`] (set `kind` on the
+/// `overlap` samples, at sample rate `fs` \[Hz\]; kind [`FrfKind::Other`] (set `kind` on the
 /// result). Equal to streaming the same samples through [`WelchH1`].
 ///
 /// Errors: `LengthMismatch`, `InvalidParameter`, `TooShort` (fewer than `nperseg` samples).

@@ -117,6 +117,7 @@ pub(crate) fn measured_curves(frf: &Frf, sigmas: f64) -> Result<Curves, PlotErro
     }
     let mut mag_band = Vec::with_capacity(n);
     let mut phase_band = Vec::with_capacity(n);
+    #[allow(clippy::needless_range_loop)] // indexes four parallel vectors
     for i in 0..n {
         if !usable[i] {
             mag_band.push(None);
@@ -236,7 +237,7 @@ pub(crate) fn nice_ticks(
     let step = steps
         .iter()
         .copied()
-        .find(|s| ((hi / s).ceil() - (lo / s).floor()) as usize + 1 <= max_ticks)
+        .find(|s| ((hi / s).ceil() - (lo / s).floor()) as usize < max_ticks)
         .unwrap_or(steps[steps.len() - 1]);
     let a = (lo / step).floor() * step;
     let b = (hi / step).ceil() * step;

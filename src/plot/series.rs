@@ -237,7 +237,7 @@ pub(crate) fn nice_ticks(
     let step = steps
         .iter()
         .copied()
-        .find(|s| ((hi / s).ceil() - (lo / s).floor()) as usize < max_ticks)
+        .find(|s| (((hi / s).ceil() - (lo / s).floor()) as usize) < max_ticks)
         .unwrap_or(steps[steps.len() - 1]);
     let a = (lo / step).floor() * step;
     let b = (hi / step).ceil() * step;

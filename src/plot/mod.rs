@@ -1,1 +1,19 @@
-//! (under construction)
+//! Bode plots as SVG, for commissioning technicians.
+//!
+//! [`BodePlot`] draws a measured [`crate::frf::Frf`] with its uncertainty band, optional
+//! model curves and resonance / anti-resonance markers in stacked magnitude, phase and
+//! (when available) coherence panels over a logarithmic frequency axis.
+
+mod axes;
+mod bode;
+mod error;
+mod series;
+mod units;
+
+pub use bode::BodePlot;
+pub use error::PlotError;
+pub use series::{BAND_FLOOR_RELATIVE, PHASE_BAND_MAX_DEG};
+pub use units::{frf_unit, magnitude_label};
+
+#[cfg(test)]
+mod tests;

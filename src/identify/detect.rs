@@ -1,1 +1,535 @@
-//! (under construction)
+//! Automatic detection of anti-resonance / resonance (AR/R) pairs on a measured FRF.
+//!
+//! Not peak picking: the detector works on the normalised response
+//! `R(f) = H_meas(f) / H_rigid,J=1(f)` — the measurement divided by the exact sampled
+//! response of a unit rigid inertia, so that hold, differencing and delay are removed and
+//! `|R| = 1/J_eff(f)` (the inverse effective inertia) while `arg R` is the phase relative
+//! to the rigid-body trend (-90 deg for a velocity response). For a passive chain `arg R`
+//! lies in [0, 180] deg: near 0 where the motor behaves like an inertia, near +180 deg between
+//! an anti-resonance and its resonance (spring-like).
+//!
+//! 1. Candidates are the notches and peaks of `ln |R|` whose prominence exceeds both
+//!    `min_depth_db` and `min_sigma` standard deviations of the lines involved (from `var`).
+//! 2. Candidates are paired in the order physics imposes, AR1 < R1 < AR2 < R2 ..., and a
+//!    pair is accepted only if the phase rises by at least `min_phase_rise_deg` between
+//!    the AR and the R (the signature of a compliant coupling).
+//! 3. Each accepted pair is refined by a local second-order rational fit of `R` (zero =
+//!    anti-resonance, pole = resonance) with standard deviations; if that fit fails, by a
+//!    parabola through `ln |R|` versus `ln f` at the extremum.
+//!
+//! A resonance whose anti-resonance lies below the lowest line (the phase is already
+//! spring-like at the start) is reported with `ar_below_band`; an anti-resonance whose
+//! resonance lies above the highest line with `r_above_band`.
+
+use super::error::IdentifyError;
+use super::lines::{fallback_sigma, sigma_log, usable_lines, RigidReference};
+use super::local_fit::fit_second_order;
+use crate::frf::Frf;
+use num_complex::Complex64;
+use serde::{Deserialize, Serialize};
+
+const DB: f64 = 20.0 / std::f64::consts::LN_10;
+
+/// Options of [`detect_pairs`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct DetectOptions {
+    /// Whole samples of command delay in the measurement.
+    pub delay_samples: u32,
+    /// Only lines inside this band [Hz] are used; all when `None`.
+    pub band_hz: Option<[f64; 2]>,
+    /// Minimum notch depth / peak height (prominence) [dB].
+    pub min_depth_db: f64,
+    /// Minimum prominence in standard deviations of the lines involved.
+    pub min_sigma: f64,
+    /// Minimum phase rise between an anti-resonance and its resonance [deg].
+    pub min_phase_rise_deg: f64,
+}
+
+impl Default for DetectOptions {
+    fn default() -> Self {
+        DetectOptions {
+            delay_samples: 0,
+            band_hz: None,
+            min_depth_db: 6.0,
+            min_sigma: 5.0,
+            min_phase_rise_deg: 120.0,
+        }
+    }
+}
+
+/// One detected anti-resonance / resonance pair.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ArRPair {
+    /// Anti-resonance frequency [Hz]. When `ar_below_band`, the lowest line used: an upper
+    /// bound only.
+    pub ar_hz: f64,
+    /// Resonance frequency [Hz]. When `r_above_band`, the highest line used: a lower bound
+    /// only.
+    pub r_hz: f64,
+    /// Standard deviation of `ar_hz` [Hz] (infinite when not observed).
+    pub ar_std_hz: f64,
+    /// Standard deviation of `r_hz` [Hz] (infinite when not observed).
+    pub r_std_hz: f64,
+    /// Phase rise of `H` between the anti-resonance and the resonance [deg] (about 180 for
+    /// a lightly damped, well separated pair).
+    pub phase_rise_deg: f64,
+    /// Prominence of the notch [dB] (0 when not observed).
+    pub depth_db: f64,
+    /// Prominence of the peak [dB] (0 when not observed).
+    pub height_db: f64,
+    /// The anti-resonance lies below the lowest line: only the resonance was seen.
+    pub ar_below_band: bool,
+    /// The resonance lies above the highest line: only the anti-resonance was seen.
+    pub r_above_band: bool,
+}
+
+/// Kind of extremum of `|H|`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ExtremumKind {
+    /// Local minimum (anti-resonance candidate).
+    Notch,
+    /// Local maximum (resonance candidate).
+    Peak,
+}
+
+/// A candidate extremum that did not become (part of) a pair, with the reason.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RejectedCandidate {
+    /// Frequency of the extremum line [Hz].
+    pub freq_hz: f64,
+    /// Notch or peak.
+    pub kind: ExtremumKind,
+    /// Its prominence [dB].
+    pub prominence_db: f64,
+    /// Its prominence in standard deviations.
+    pub prominence_sigma: f64,
+    /// Why it was not accepted.
+    pub reason: String,
+}
+
+/// Result of [`detect_pairs`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Detection {
+    /// Accepted pairs, ascending in frequency.
+    pub pairs: Vec<ArRPair>,
+    /// Candidates that were rejected (only those with a prominence above 1 dB and 3 sigma,
+    /// so that plain noise does not fill the report).
+    pub rejected: Vec<RejectedCandidate>,
+    /// Human-readable remarks (e.g. an anti-resonance below the band).
+    pub notes: Vec<String>,
+}
+
+/// The normalised response on the usable lines: frequency [Hz], `R = H/H_rigid,J=1`
+/// [1/(kg m^2)], and the standard deviation of `ln|R|` and `arg R` [1, rad].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct NormalizedResponse {
+    /// Line frequencies [Hz].
+    pub freq_hz: Vec<f64>,
+    /// `R = H_meas / H_rigid,J=1` [1/(kg m^2)]: `1/|R|` is the effective inertia.
+    pub r: Vec<Complex64>,
+    /// Standard deviation of `ln |R|` and of `arg R` [1, rad] per line.
+    pub sigma: Vec<f64>,
+}
+
+impl NormalizedResponse {
+    /// Effective inertia `J_eff = 1/|R|` [kg m^2] per line.
+    pub fn effective_inertia(&self) -> Vec<f64> {
+        self.r.iter().map(|r| 1.0 / r.norm()).collect()
+    }
+
+    /// Phase relative to the rigid-body trend [deg], in (-90, 270].
+    pub fn relative_phase_deg(&self) -> Vec<f64> {
+        self.r.iter().map(|r| rel_phase(*r).to_degrees()).collect()
+    }
+}
+
+/// Normalise `frf` by the exact sampled response of a unit rigid inertia.
+pub fn normalized_response(
+    frf: &Frf,
+    band_hz: Option<[f64; 2]>,
+    delay_samples: u32,
+) -> Result<NormalizedResponse, IdentifyError> {
+    let reference = RigidReference::new(frf, delay_samples)?;
+    let idx = usable_lines(frf, band_hz);
+    let fb = fallback_sigma(frf, &idx);
+    Ok(NormalizedResponse {
+        freq_hz: idx.iter().map(|&i| frf.freq_hz[i]).collect(),
+        r: idx
+            .iter()
+            .map(|&i| frf.h[i] / reference.at(frf.freq_hz[i]))
+            .collect(),
+        sigma: idx.iter().map(|&i| sigma_log(frf, i, fb)).collect(),
+    })
+}
+
+/// Phase of `r` in (-pi/2, 3pi/2].
+fn rel_phase(r: Complex64) -> f64 {
+    let p = r.arg();
+    if p <= -std::f64::consts::FRAC_PI_2 {
+        p + 2.0 * std::f64::consts::PI
+    } else {
+        p
+    }
+}
+
+#[derive(Debug, Clone, Copy)]
+struct Candidate {
+    i: usize,
+    kind: ExtremumKind,
+    /// Prominence in ln units.
+    prom: f64,
+    sigma: f64,
+}
+
+/// Detect AR/R pairs on `frf` (differenced-velocity or position FRF).
+pub fn detect_pairs(frf: &Frf, opts: &DetectOptions) -> Result<Detection, IdentifyError> {
+    let nr = normalized_response(frf, opts.band_hz, opts.delay_samples)?;
+    let m = nr.freq_hz.len();
+    if m < 5 {
+        return Err(IdentifyError::TooFewLines {
+            what: "pair detection",
+            usable: m,
+            needed: 5,
+        });
+    }
+    let y: Vec<f64> = nr.r.iter().map(|r| r.norm().ln()).collect();
+    let ph: Vec<f64> = nr.r.iter().map(|r| rel_phase(*r)).collect();
+    let f = &nr.freq_hz;
+    let s = &nr.sigma;
+
+    let mut det = Detection {
+        pairs: Vec::new(),
+        rejected: Vec::new(),
+        notes: Vec::new(),
+    };
+    // 1. candidates
+    let mut cands = Vec::new();
+    for kind in [ExtremumKind::Notch, ExtremumKind::Peak] {
+        let sign = if kind == ExtremumKind::Peak {
+            1.0
+        } else {
+            -1.0
+        };
+        let v: Vec<f64> = y.iter().map(|x| sign * x).collect();
+        for (i, prom, iref) in prominences(&v) {
+            let sigma = (s[i] * s[i] + s[iref] * s[iref]).sqrt();
+            let c = Candidate {
+                i,
+                kind,
+                prom,
+                sigma,
+            };
+            let db = prom * DB;
+            if db >= opts.min_depth_db && prom >= opts.min_sigma * sigma {
+                cands.push(c);
+            } else if db >= 1.0 && prom >= 3.0 * sigma {
+                det.rejected.push(reject(
+                    f,
+                    &c,
+                    format!(
+                        "prominence {db:.1} dB / {:.1} sigma below the thresholds \
+                         ({} dB, {} sigma)",
+                        prom / sigma,
+                        opts.min_depth_db,
+                        opts.min_sigma
+                    ),
+                ));
+            }
+        }
+    }
+    cands.sort_by_key(|c| c.i);
+
+    // 2. pairing in physical order
+    let min_rise = opts.min_phase_rise_deg.to_radians();
+    let mut k = 0;
+    let mut lower_bound = 0usize; // first line index after the previous accepted pair
+    while k < cands.len() {
+        let c = cands[k];
+        match c.kind {
+            ExtremumKind::Notch => {
+                let next = cands.get(k + 1).copied();
+                match next {
+                    Some(n) if n.kind == ExtremumKind::Peak => {
+                        let base = min_smoothed(&ph, lower_bound, c.i);
+                        let top = max_smoothed(&ph, c.i, n.i + 1);
+                        let rise = top - base;
+                        if rise >= min_rise {
+                            let upper = cands.get(k + 2).map_or(m, |x| x.i);
+                            det.pairs.push(refine_pair(
+                                &nr,
+                                &y,
+                                Some(c),
+                                Some(n),
+                                lower_bound,
+                                upper,
+                                rise,
+                            ));
+                            lower_bound = n.i;
+                            k += 2;
+                            continue;
+                        }
+                        det.rejected.push(reject(
+                            f,
+                            &c,
+                            format!(
+                                "phase rises only {:.0} deg up to the peak at {:.4} Hz \
+                                 (needs {:.0})",
+                                rise.to_degrees(),
+                                f[n.i],
+                                opts.min_phase_rise_deg
+                            ),
+                        ));
+                    }
+                    Some(_) => det.rejected.push(reject(
+                        f,
+                        &c,
+                        "followed by another notch without a resonance in between".into(),
+                    )),
+                    None => {
+                        // resonance above the band?
+                        let base = min_smoothed(&ph, lower_bound, c.i);
+                        let top = max_smoothed(&ph, c.i, m);
+                        let tail = median(&ph[m.saturating_sub(3)..m]);
+                        let rise = top - base;
+                        if rise >= min_rise && tail - base >= min_rise {
+                            let p = refine_pair(&nr, &y, Some(c), None, lower_bound, m, rise);
+                            det.notes.push(format!(
+                                "anti-resonance at {:.4} Hz: its resonance lies above the \
+                                 highest line ({:.4} Hz)",
+                                p.ar_hz,
+                                f[m - 1]
+                            ));
+                            det.pairs.push(p);
+                        } else {
+                            det.rejected.push(reject(
+                                f,
+                                &c,
+                                "no resonance follows and the phase does not stay \
+                                 spring-like up to the end of the band"
+                                    .into(),
+                            ));
+                        }
+                    }
+                }
+                k += 1;
+            }
+            ExtremumKind::Peak => {
+                let first = det.pairs.is_empty() && lower_bound == 0;
+                let head = median(&ph[..3.min(m)]);
+                let top = max_smoothed(&ph, 0, c.i + 1);
+                if first && head >= min_rise && top >= min_rise {
+                    let upper = cands.get(k + 1).map_or(m, |x| x.i);
+                    let p = refine_pair(&nr, &y, None, Some(c), 0, upper, top);
+                    det.notes.push(format!(
+                        "resonance at {:.4} Hz: its anti-resonance lies below the lowest \
+                         line ({:.4} Hz); the phase is already spring-like there",
+                        p.r_hz, f[0]
+                    ));
+                    det.pairs.push(p);
+                    lower_bound = c.i;
+                } else {
+                    det.rejected.push(reject(
+                        f,
+                        &c,
+                        "resonance without an anti-resonance below it".into(),
+                    ));
+                }
+                k += 1;
+            }
+        }
+    }
+    det.pairs.sort_by(|a, b| a.r_hz.total_cmp(&b.r_hz));
+    det.rejected.sort_by(|a, b| a.freq_hz.total_cmp(&b.freq_hz));
+    Ok(det)
+}
+
+fn reject(f: &[f64], c: &Candidate, reason: String) -> RejectedCandidate {
+    RejectedCandidate {
+        freq_hz: f[c.i],
+        kind: c.kind,
+        prominence_db: c.prom * DB,
+        prominence_sigma: c.prom / c.sigma,
+        reason,
+    }
+}
+
+/// Local maxima of `v` with their topographic prominence and the index of the reference
+/// (key col) line: `(index, prominence, reference index)`.
+fn prominences(v: &[f64]) -> Vec<(usize, f64, usize)> {
+    let m = v.len();
+    let mut out = Vec::new();
+    for i in 1..m - 1 {
+        if !(v[i] > v[i - 1] && v[i] >= v[i + 1]) {
+            continue;
+        }
+        // left: lowest point before a higher one
+        let (mut lmin, mut li) = (v[i], i);
+        let mut j = i;
+        while j > 0 {
+            j -= 1;
+            if v[j] > v[i] {
+                break;
+            }
+            if v[j] < lmin {
+                lmin = v[j];
+                li = j;
+            }
+        }
+        let (mut rmin, mut ri) = (v[i], i);
+        let mut j = i;
+        while j + 1 < m {
+            j += 1;
+            if v[j] > v[i] {
+                break;
+            }
+            if v[j] < rmin {
+                rmin = v[j];
+                ri = j;
+            }
+        }
+        let (base, bi) = if lmin > rmin { (lmin, li) } else { (rmin, ri) };
+        out.push((i, v[i] - base, bi));
+    }
+    out
+}
+
+/// Three-point running median of `v[lo..hi]`, then its maximum.
+fn max_smoothed(v: &[f64], lo: usize, hi: usize) -> f64 {
+    (lo..hi.min(v.len()))
+        .map(|i| med3(v, i))
+        .fold(f64::NEG_INFINITY, f64::max)
+}
+
+/// Three-point running median of `v[lo..=hi]`, then its minimum.
+fn min_smoothed(v: &[f64], lo: usize, hi: usize) -> f64 {
+    (lo..=hi.min(v.len() - 1))
+        .map(|i| med3(v, i))
+        .fold(f64::INFINITY, f64::min)
+}
+
+fn med3(v: &[f64], i: usize) -> f64 {
+    let a = v[i.saturating_sub(1)];
+    let b = v[i];
+    let c = v[(i + 1).min(v.len() - 1)];
+    a.max(b).min(a.min(b).max(c))
+}
+
+fn median(v: &[f64]) -> f64 {
+    let mut w = v.to_vec();
+    w.sort_by(|a, b| a.total_cmp(b));
+    w[w.len() / 2]
+}
+
+/// Refine one pair: local rational fit on the lines between the neighbouring candidates
+/// (limited to a factor of the pair's own span), parabola fallback.
+fn refine_pair(
+    nr: &NormalizedResponse,
+    y: &[f64],
+    ar: Option<Candidate>,
+    r: Option<Candidate>,
+    lo_idx: usize,
+    hi_idx: usize,
+    rise: f64,
+) -> ArRPair {
+    let f = &nr.freq_hz;
+    let m = f.len();
+    let fa = ar.map(|c| f[c.i]);
+    let fr = r.map(|c| f[c.i]);
+    let (f_lo_c, f_hi_c) = match (fa, fr) {
+        (Some(a), Some(b)) => (a, b),
+        (Some(a), None) => (a, f[m - 1]),
+        (None, Some(b)) => (f[0], b),
+        (None, None) => unreachable!("a pair has at least one extremum"),
+    };
+    let span = (f_hi_c / f_lo_c).max(1.05);
+    // window: geometric mid-points to the neighbouring extrema, at most one span beyond
+    let lo_f = if lo_idx > 0 {
+        (f[lo_idx] * f_lo_c).sqrt().max(f_lo_c / span)
+    } else {
+        f[0].max(f_lo_c / span)
+    };
+    let hi_f = if hi_idx < m {
+        (f[hi_idx] * f_hi_c).sqrt().min(f_hi_c * span)
+    } else {
+        f[m - 1].min(f_hi_c * span)
+    };
+    let win: Vec<usize> = (0..m).filter(|&i| f[i] >= lo_f && f[i] <= hi_f).collect();
+    let fc = (f_lo_c * f_hi_c).sqrt();
+    let local = fit_second_order(
+        &win.iter().map(|&i| f[i]).collect::<Vec<_>>(),
+        &win.iter().map(|&i| nr.r[i]).collect::<Vec<_>>(),
+        &win.iter()
+            .map(|&i| nr.sigma[i] * nr.r[i].norm())
+            .collect::<Vec<_>>(),
+        fc,
+    );
+    let accept = |v: Option<super::local_fit::Refined>, c: f64| {
+        v.filter(|x| {
+            x.hz.is_finite() && x.hz > 0.0 && (x.hz / c).ln().abs() < 0.5 * span.ln().max(0.05)
+        })
+    };
+    let mut pair = ArRPair {
+        ar_hz: f[0],
+        r_hz: f[m - 1],
+        ar_std_hz: f64::INFINITY,
+        r_std_hz: f64::INFINITY,
+        phase_rise_deg: rise.to_degrees(),
+        depth_db: 0.0,
+        height_db: 0.0,
+        ar_below_band: ar.is_none(),
+        r_above_band: r.is_none(),
+    };
+    if let Some(c) = ar {
+        let fit = accept(local.and_then(|l| l.zero), f[c.i]);
+        let (hz, sd) = fit.map_or_else(
+            || parabola(f, y, c.i, -1.0, &nr.sigma),
+            |x| (x.hz, x.std_hz),
+        );
+        pair.ar_hz = hz;
+        pair.ar_std_hz = sd;
+        pair.depth_db = c.prom * DB;
+    }
+    if let Some(c) = r {
+        let fit = accept(local.and_then(|l| l.pole), f[c.i]);
+        let (hz, sd) =
+            fit.map_or_else(|| parabola(f, y, c.i, 1.0, &nr.sigma), |x| (x.hz, x.std_hz));
+        pair.r_hz = hz;
+        pair.r_std_hz = sd;
+        pair.height_db = c.prom * DB;
+    }
+    pair
+}
+
+/// Vertex of the parabola through `sign * y` versus `ln f` at lines `i-1, i, i+1`, with a
+/// standard deviation from the line noise: `(f [Hz], std [Hz])`.
+fn parabola(f: &[f64], y: &[f64], i: usize, sign: f64, sigma: &[f64]) -> (f64, f64) {
+    if i == 0 || i + 1 >= f.len() {
+        return (f[i], f64::INFINITY);
+    }
+    let x = |k: usize| f[k].ln();
+    let vertex = |y0: f64, y1: f64, y2: f64| -> f64 {
+        let (x0, x1, x2) = (x(i - 1), x(i), x(i + 1));
+        let d0 = (y1 - y0) / (x1 - x0);
+        let d1 = (y2 - y1) / (x2 - x1);
+        let a = (d1 - d0) / (x2 - x0);
+        if a >= 0.0 {
+            return x1;
+        }
+        let v = 0.5 * (x0 + x1) - d0 / (2.0 * a);
+        v.clamp(x0, x2)
+    };
+    let (y0, y1, y2) = (sign * y[i - 1], sign * y[i], sign * y[i + 1]);
+    let v = vertex(y0, y1, y2);
+    let mut var = 0.0;
+    for (k, dy) in [(0usize, sigma[i - 1]), (1, sigma[i]), (2, sigma[i + 1])] {
+        let mut p = [y0, y1, y2];
+        p[k] += dy;
+        var += (vertex(p[0], p[1], p[2]) - v).powi(2);
+    }
+    let hz = v.exp();
+    // a vertex pinned to a line is only known to within the line spacing
+    let spacing = 0.5 * (x(i + 1) - x(i - 1)) / 12f64.sqrt();
+    let sd = if var > 0.0 { var.sqrt() } else { spacing };
+    (hz, hz * sd)
+}

@@ -6,12 +6,21 @@
 //! 4. [`exact`]: the exact inverse (the chain whose spectra are exactly the measured ones).
 //! 5. [`fit`]: Levenberg-Marquardt refinement of all J, c, d on the weighted log-complex FRF
 //!    error, with multi-start, standard deviations and automatic model order.
+//!
+//! Failures are reported as [`error::IdentifyError`].
 
 pub mod detect;
+pub mod error;
 pub mod exact;
 pub mod fit;
 pub mod inertia;
+mod jet;
+mod lines;
+mod local_fit;
 pub mod paper;
+mod problem;
 
+#[cfg(test)]
+mod tests_fit;
 #[cfg(test)]
 mod tests_paper;

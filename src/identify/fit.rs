@@ -44,7 +44,8 @@ pub struct FitOptions {
     pub spread: f64,
     /// Width in decades of the log-uniform spread of the dampings in the random starts.
     pub damping_decades: f64,
-    /// Worker threads for the starts (1 = on the calling thread).
+    /// Worker threads for the starts (1 = on the calling thread; 0 = the available
+    /// parallelism, at most 4). The result does not depend on it.
     pub threads: usize,
 }
 
@@ -58,7 +59,7 @@ impl Default for FitOptions {
             band_hz: None,
             spread: 0.3,
             damping_decades: 1.0,
-            threads: 1,
+            threads: 0,
         }
     }
 }
@@ -99,6 +100,8 @@ pub struct ChainFit {
     pub starts_converged: usize,
     /// Residual evaluations of the best start.
     pub iterations: usize,
+    /// Residual evaluations of all starts together.
+    pub evaluations_total: usize,
     /// RMS of the magnitude error `20 log10 |H_model/H_meas|` over the lines [dB].
     pub residual_rms_db: f64,
     /// RMS of the phase error `arg(H_model/H_meas)` over the lines [deg].
@@ -138,7 +141,10 @@ pub fn fit_chain(frf: &Frf, init: &Chain, opts: &FitOptions) -> Result<ChainFit,
         .iter()
         .filter(|r| matches!(r, Ok((c, _, _)) if *c <= cost + tol))
         .count();
-    summarize(&data, theta, cost, evals, starts.len(), converged)
+    let total = results.iter().map(|r| r.as_ref().map_or(0, |x| x.2)).sum();
+    let mut fit = summarize(&data, theta, cost, evals, starts.len(), converged)?;
+    fit.evaluations_total = total;
+    Ok(fit)
 }
 
 /// One candidate order of [`select_order`].
@@ -273,9 +279,9 @@ fn run_one(data: &FitData, theta: &DVector<f64>, opts: &FitOptions) -> StartResu
     let np = data.params();
     let patience = opts.max_iter.div_ceil(np + 1).max(1);
     let lm = LevenbergMarquardt::new()
-        .with_ftol(1e-12)
-        .with_xtol(1e-10)
-        .with_gtol(1e-12)
+        .with_ftol(1e-10)
+        .with_xtol(1e-8)
+        .with_gtol(1e-10)
         .with_patience(patience);
     let problem = ChainProblem::new(data, theta.clone());
     let (problem, report) = lm.minimize(problem);
@@ -290,7 +296,12 @@ fn run_one(data: &FitData, theta: &DVector<f64>, opts: &FitOptions) -> StartResu
 }
 
 fn run_starts(data: &FitData, starts: &[DVector<f64>], opts: &FitOptions) -> Vec<StartResult> {
-    let threads = opts.threads.clamp(1, starts.len().max(1));
+    let threads = if opts.threads == 0 {
+        std::thread::available_parallelism().map_or(1, |n| n.get().min(4))
+    } else {
+        opts.threads
+    };
+    let threads = threads.clamp(1, starts.len().max(1));
     if threads == 1 {
         return starts.iter().map(|t| run_one(data, t, opts)).collect();
     }
@@ -335,6 +346,7 @@ fn prepare(frf: &Frf, masses: usize, opts: &FitOptions) -> Result<FitData, Ident
         ts,
         masses,
         z: Vec::with_capacity(idx.len()),
+        zm1: Vec::with_capacity(idx.len()),
         k: Vec::with_capacity(idx.len()),
         gamma: Vec::with_capacity(idx.len()),
         w: Vec::with_capacity(idx.len()),
@@ -342,12 +354,16 @@ fn prepare(frf: &Frf, masses: usize, opts: &FitOptions) -> Result<FitData, Ident
     for &i in &idx {
         let z = Complex64::from_polar(1.0, 2.0 * std::f64::consts::PI * frf.freq_hz[i] * ts);
         let delay = z.powi(-(opts.delay_samples as i32));
+        let zm1 = super::problem::expm1(Complex64::new(
+            0.0,
+            2.0 * std::f64::consts::PI * frf.freq_hz[i] * ts,
+        ));
         let g = match frf.kind {
             FrfKind::Position => delay,
-            _ => (1.0 - 1.0 / z) / ts * delay,
+            _ => zm1 / (z * ts) * delay,
         };
-        let zm1 = z - 1.0;
         data.z.push(z);
+        data.zm1.push(zm1);
         data.k.push(g / frf.h[i]);
         data.gamma.push(ts * ts * (z + 1.0) / (2.0 * zm1 * zm1));
         data.w.push(1.0 / sigma_log(frf, i, fb));
@@ -407,6 +423,7 @@ fn summarize(
         starts,
         starts_converged: converged,
         iterations: evals,
+        evaluations_total: evals,
         residual_rms_db,
         residual_rms_deg,
     })

@@ -45,7 +45,7 @@ pub fn estimate_inertia(
     band_hz: [f64; 2],
     delay_samples: u32,
 ) -> Result<InertiaEstimate, IdentifyError> {
-    if !(band_hz[0] < band_hz[1]) {
+    if band_hz[0].partial_cmp(&band_hz[1]) != Some(std::cmp::Ordering::Less) {
         return Err(IdentifyError::InvalidArgument(format!(
             "inertia band {band_hz:?} Hz is empty"
         )));
@@ -140,7 +140,7 @@ fn weighted_line(pts: &[(f64, f64, f64)]) -> Option<(f64, f64, f64, f64, f64)> {
         sxy += w * x * y;
     }
     let det = s * sxx - sx * sx;
-    if !(det > 1e-12 * s * sxx) {
+    if det.partial_cmp(&(1e-12 * s * sxx)) != Some(std::cmp::Ordering::Greater) {
         return None;
     }
     let a = (sxx * sy - sx * sxy) / det;

@@ -71,8 +71,7 @@ pub(crate) fn fit_second_order(
                 }
             })
             .collect();
-        for j in 0..5 {
-            let sc = scale[j];
+        for (j, sc) in scale.iter().enumerate() {
             a.column_mut(j).scale_mut(1.0 / sc);
         }
         let svd = a.clone().svd(true, true);

@@ -12,8 +12,10 @@
 //! residue derivatives come from the implicit-function theorem on the ladder impedance
 //! `Z(p_k) = 0`: `dp = -Z_theta / Z_s`, `r = 1/(p Z_s)`,
 //! `dr = -r^2 (dp Z_s + p (Z_ss dp + Z_s,theta))`, the partial derivatives of `Z` being
-//! computed by forward-mode jets (`super::jet`). Per line and pole this costs one complex
-//! division and two complex multiply-adds per parameter.
+//! computed by forward-mode jets (`super::jet`). The poles are then grouped in conjugate
+//! (or real) pairs, each pair a real-coefficient second-order section in `w = z - 1`, so
+//! that per line and section the Jacobian costs one complex reciprocal and four
+//! complex-times-real multiply-adds per parameter.
 
 use super::jet::impedance_jet;
 use crate::model::{Chain, SampledChain};
@@ -30,6 +32,8 @@ pub(crate) struct FitData {
     pub(crate) masses: usize,
     /// `z = e^{j w Ts}` per line.
     pub(crate) z: Vec<Complex64>,
+    /// `z - 1` per line, computed without cancellation.
+    pub(crate) zm1: Vec<Complex64>,
     /// `G(z) / H_meas` per line: the model's ratio to the measurement is `P(z) k`.
     pub(crate) k: Vec<Complex64>,
     /// `Ts^2 (z+1) / (2 (z-1)^2)`: rigid-body position response times `J`.
@@ -44,23 +48,19 @@ impl FitData {
     }
 }
 
-/// Model quantities at one parameter vector.
+/// Model quantities at one parameter vector. The flexible poles are grouped in pairs
+/// (conjugate, or both real) so that each pair is one real-coefficient second-order section
+/// `(n1 w + n0) / (w^2 + b1 w + b0)` in `w = z - 1` (no cancellation at low frequency,
+/// where `z` and the sampled poles all crowd near 1).
 #[derive(Debug, Clone, Default)]
 struct ModelState {
     j_total: f64,
     /// `d J_total / d theta_j`.
     dj: Vec<f64>,
-    /// `r_k a_k` per pole.
-    ra: Vec<Complex64>,
-    q: Vec<Complex64>,
-    a: Vec<Complex64>,
-    /// `r_k (Ts q/(q-1) - 1/p)` per pole.
-    rb: Vec<Complex64>,
-    r: Vec<Complex64>,
-    /// `dp_k/dtheta_j` at `[k * P + j]`.
-    dp: Vec<Complex64>,
-    /// `dr_k/dtheta_j` at `[k * P + j]`.
-    dr: Vec<Complex64>,
+    /// `[n1, n0, b1, b0]` per section.
+    sec: Vec<[f64; 4]>,
+    /// Derivatives of `[n1, n0, b1, b0]` at `[s * P + j]`.
+    dsec: Vec<[f64; 4]>,
     ok: bool,
 }
 
@@ -80,6 +80,93 @@ pub(crate) fn chain_of_theta(theta: &[f64], n: usize) -> Chain {
     }
 }
 
+/// One pole of the sampled response with its derivatives in every log-parameter.
+struct PoleTerm {
+    /// `q = e^{p Ts}`.
+    q: Complex64,
+    /// `q - 1`, without cancellation.
+    m: Complex64,
+    /// `r a` with `a = (q - 1)/p`.
+    ra: Complex64,
+    /// `d q / d theta_j`.
+    dq: Vec<Complex64>,
+    /// `d (r a) / d theta_j`.
+    dra: Vec<Complex64>,
+}
+
+fn pole_term(chain: &Chain, p: Complex64, ts: f64, np: usize) -> Option<PoleTerm> {
+    let base = impedance_jet(chain, p, None);
+    let zs = base.0[1];
+    let zss = 2.0 * base.0[2];
+    let r = 1.0 / (p * zs);
+    let q = (p * ts).exp();
+    let m = expm1(p * ts);
+    let a = m / p;
+    // d a / d p = a b
+    let b = ts * q / m - 1.0 / p;
+    if !(r.is_finite() && a.is_finite() && b.is_finite()) {
+        return None;
+    }
+    let mut t = PoleTerm {
+        q,
+        m,
+        ra: r * a,
+        dq: Vec::with_capacity(np),
+        dra: Vec::with_capacity(np),
+    };
+    for j in 0..np {
+        let jet = impedance_jet(chain, p, Some(j));
+        let dp = -jet.0[3] / zs;
+        let df = dp * zs + p * (zss * dp + jet.0[4]);
+        let dr = -r * r * df;
+        t.dq.push(ts * q * dp);
+        t.dra.push(a * dr + r * a * b * dp);
+    }
+    Some(t)
+}
+
+/// `e^x - 1` for complex `x` without cancellation for small `|x|`.
+pub(crate) fn expm1(x: Complex64) -> Complex64 {
+    let half = (0.5 * x.im).sin();
+    Complex64::new(
+        x.re.exp_m1() * x.im.cos() - 2.0 * half * half,
+        x.re.exp() * x.im.sin(),
+    )
+}
+
+fn conj_term(t: &PoleTerm) -> PoleTerm {
+    PoleTerm {
+        q: t.q.conj(),
+        m: t.m.conj(),
+        ra: t.ra.conj(),
+        dq: t.dq.iter().map(|v| v.conj()).collect(),
+        dra: t.dra.iter().map(|v| v.conj()).collect(),
+    }
+}
+
+/// Group poles into conjugate pairs and pairs of real poles.
+fn pair_poles(poles: &[Complex64]) -> Option<Vec<(Complex64, Option<Complex64>)>> {
+    let tiny = |p: &Complex64| p.im.abs() <= 1e-12 * p.norm();
+    let mut out = Vec::new();
+    let mut real: Vec<Complex64> = Vec::new();
+    for p in poles {
+        if tiny(p) {
+            real.push(Complex64::new(p.re, 0.0));
+        } else if p.im > 0.0 {
+            out.push((*p, None));
+        }
+    }
+    let upper = out.len();
+    let lower = poles.iter().filter(|p| !tiny(p) && p.im < 0.0).count();
+    if upper != lower || real.len() % 2 != 0 {
+        return None;
+    }
+    for c in real.chunks(2) {
+        out.push((c[0], Some(c[1])));
+    }
+    Some(out)
+}
+
 impl<'a> ChainProblem<'a> {
     pub(crate) fn new(data: &'a FitData, theta: DVector<f64>) -> Self {
         let mut p = ChainProblem {
@@ -97,6 +184,8 @@ impl<'a> ChainProblem<'a> {
         let np = d.params();
         let st = &mut self.state;
         st.ok = false;
+        st.sec.clear();
+        st.dsec.clear();
         if self.theta.iter().any(|t| !t.is_finite() || t.abs() > 700.0) {
             return;
         }
@@ -105,61 +194,65 @@ impl<'a> ChainProblem<'a> {
         st.dj = (0..np)
             .map(|j| if j < n { chain.inertia_kgm2[j] } else { 0.0 })
             .collect();
-        let poles: Vec<Complex64> = if n > 1 {
-            match SampledChain::new(&chain, d.fs_hz, 0) {
-                Ok(sc) => sc.poles().to_vec(),
-                Err(_) => return,
+        if n > 1 {
+            let Ok(sc) = SampledChain::new(&chain, d.fs_hz, 0) else {
+                return;
+            };
+            let Some(groups) = pair_poles(sc.poles()) else {
+                return;
+            };
+            for (p1, p2) in groups {
+                let Some(t1) = pole_term(&chain, p1, d.ts, np) else {
+                    return;
+                };
+                let t2 = match p2 {
+                    None => conj_term(&t1),
+                    Some(p2) => match pole_term(&chain, p2, d.ts, np) {
+                        Some(t) => t,
+                        None => return,
+                    },
+                };
+                // (ra1 (w - m2) + ra2 (w - m1)) / ((w - m1)(w - m2)), w = z - 1, m = q - 1
+                st.sec.push([
+                    (t1.ra + t2.ra).re,
+                    -(t1.ra * t2.m + t2.ra * t1.m).re,
+                    -(t1.m + t2.m).re,
+                    (t1.m * t2.m).re,
+                ]);
+                for j in 0..np {
+                    st.dsec.push([
+                        (t1.dra[j] + t2.dra[j]).re,
+                        -(t1.dra[j] * t2.m
+                            + t1.ra * t2.dq[j]
+                            + t2.dra[j] * t1.m
+                            + t2.ra * t1.dq[j])
+                            .re,
+                        -(t1.dq[j] + t2.dq[j]).re,
+                        (t1.dq[j] * t2.m + t1.m * t2.dq[j]).re,
+                    ]);
+                }
             }
-        } else {
-            Vec::new()
-        };
-        let m = poles.len();
-        st.ra.clear();
-        st.q.clear();
-        st.a.clear();
-        st.rb.clear();
-        st.r.clear();
-        st.dp.clear();
-        st.dr.clear();
-        for &p in &poles {
-            let base = impedance_jet(&chain, p, None);
-            let zs = base.0[1];
-            let zss = 2.0 * base.0[2];
-            let r = 1.0 / (p * zs);
-            let q = (p * d.ts).exp();
-            let a = (q - 1.0) / p;
-            let b = d.ts * q / (q - 1.0) - 1.0 / p;
-            if !(r.is_finite() && a.is_finite() && b.is_finite()) {
+            if 2 * st.sec.len() != sc.poles().len() {
                 return;
             }
-            st.r.push(r);
-            st.q.push(q);
-            st.a.push(a);
-            st.ra.push(r * a);
-            st.rb.push(r * b);
-            for j in 0..np {
-                let jet = impedance_jet(&chain, p, Some(j));
-                let dp = -jet.0[3] / zs;
-                let df = dp * zs + p * (zss * dp + jet.0[4]);
-                st.dp.push(dp);
-                st.dr.push(-r * r * df);
-            }
         }
-        debug_assert_eq!(st.dp.len(), m * np);
         st.ok = true;
     }
 
-    /// Position response `P(z)` times `k` on line `i`, and the `1/(z - q_k)` per pole.
+    /// Position response `P(z)` on line `i`; fills `e[s] = 1/D_s(z)` and `g[s] = N_s/D_s`.
     #[inline]
-    fn ratio(&self, i: usize, u: &mut [Complex64]) -> Complex64 {
+    fn position(&self, i: usize, e: &mut [Complex64], g: &mut [Complex64]) -> Complex64 {
         let d = self.data;
         let st = &self.state;
-        let z = d.z[i];
+        let w = d.zm1[i];
         let mut p = d.gamma[i] / st.j_total;
-        for (k, (&ra, &q)) in st.ra.iter().zip(&st.q).enumerate() {
-            let uk = 1.0 / (z - q);
-            u[k] = uk;
-            p += ra * uk;
+        for (s, c) in st.sec.iter().enumerate() {
+            let den = w * (w + c[2]) + c[3];
+            let es = den.inv();
+            let gs = (w * c[0] + c[1]) * es;
+            e[s] = es;
+            g[s] = gs;
+            p += gs;
         }
         p
     }
@@ -169,10 +262,15 @@ impl<'a> ChainProblem<'a> {
         if !self.state.ok {
             return None;
         }
-        let mut u = vec![Complex64::new(0.0, 0.0); self.state.q.len()];
+        let ns = self.state.sec.len();
+        let mut e = vec![Complex64::new(0.0, 0.0); ns];
+        let mut g = vec![Complex64::new(0.0, 0.0); ns];
         Some(
             (0..self.data.z.len())
-                .map(|i| (self.ratio(i, &mut u) * self.data.k[i]).ln())
+                .map(|i| {
+                    let v = self.position(i, &mut e, &mut g) * self.data.k[i];
+                    Complex64::new(0.5 * v.norm_sqr().ln(), v.im.atan2(v.re))
+                })
                 .collect(),
         )
     }
@@ -214,39 +312,35 @@ impl LeastSquaresProblem<f64, Dyn, Dyn> for ChainProblem<'_> {
         let d = self.data;
         let st = &self.state;
         let np = d.params();
-        let m = st.q.len();
+        let ns = st.sec.len();
         let lines = d.z.len();
         let mut jac = DMatrix::zeros(2 * lines, np);
-        let mut u = vec![Complex64::new(0.0, 0.0); m];
-        let mut phi = vec![Complex64::new(0.0, 0.0); m];
-        let mut psi = vec![Complex64::new(0.0, 0.0); m];
+        let mut e = vec![Complex64::new(0.0, 0.0); ns];
+        let mut g = vec![Complex64::new(0.0, 0.0); ns];
         let mut dpd = vec![Complex64::new(0.0, 0.0); np];
-        let ts = d.ts;
         for i in 0..lines {
-            let pz = self.ratio(i, &mut u);
-            let inv_p = 1.0 / pz;
-            for k in 0..m {
-                // phi = dg/dr, psi = dg/dp
-                phi[k] = st.a[k] * u[k];
-                psi[k] = phi[k] * (st.rb[k] + st.r[k] * ts * st.q[k] * u[k]);
-            }
+            let z = d.zm1[i];
+            let pz = self.position(i, &mut e, &mut g);
+            let inv_p = pz.inv();
             let rigid = -d.gamma[i] / (st.j_total * st.j_total);
             for (j, v) in dpd.iter_mut().enumerate() {
                 *v = rigid * st.dj[j];
             }
-            for k in 0..m {
-                let (f, s) = (phi[k], psi[k]);
-                let dr = &st.dr[k * np..(k + 1) * np];
-                let dp = &st.dp[k * np..(k + 1) * np];
-                for j in 0..np {
-                    dpd[j] += f * dr[j] + s * dp[j];
+            for s in 0..ns {
+                // d(N/D) = (dn1 w + dn0 - G (db1 w + db0)) / D
+                let ze = z * e[s];
+                let ge = g[s] * e[s];
+                let gze = ge * z;
+                let ds = &st.dsec[s * np..(s + 1) * np];
+                for (v, c) in dpd.iter_mut().zip(ds) {
+                    *v += ze * c[0] + e[s] * c[1] - gze * c[2] - ge * c[3];
                 }
             }
             let w = d.w[i];
             for (j, v) in dpd.iter().enumerate() {
-                let g = v * inv_p;
-                jac[(2 * i, j)] = w * g.re;
-                jac[(2 * i + 1, j)] = w * g.im;
+                let gj = v * inv_p;
+                jac[(2 * i, j)] = w * gj.re;
+                jac[(2 * i + 1, j)] = w * gj.im;
             }
         }
         if jac.iter().all(|v| v.is_finite()) {

@@ -19,6 +19,8 @@
 //! Conventions: SI units throughout (kg m^2, N m/rad, N m s/rad, rad, rad/s, Hz, s). The
 //! plant is the motor mobility: motor torque -> motor angular velocity. Body 1 is the motor.
 
+pub mod analysis;
+pub mod cli;
 pub mod excitation;
 pub mod frf;
 pub mod identify;

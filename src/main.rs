@@ -1,2 +1,22 @@
-//! (under construction)
-fn main() {}
+//! The `flexid` binary: parses the command line and calls the library.
+
+use clap::Parser;
+use std::process::ExitCode;
+
+fn main() -> ExitCode {
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_env("FLEXID_LOG")
+                .unwrap_or_else(|_| "warn".into()),
+        )
+        .with_writer(std::io::stderr)
+        .init();
+    let cli = flexid::cli::Cli::parse();
+    match flexid::cli::run(cli) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("flexid: error: {e}");
+            ExitCode::from(e.code)
+        }
+    }
+}

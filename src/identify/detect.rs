@@ -212,8 +212,19 @@ pub fn detect_pairs(frf: &Frf, opts: &DetectOptions) -> Result<Detection, Identi
             -1.0
         };
         let v: Vec<f64> = y.iter().map(|x| sign * x).collect();
+        let k = opts.min_sigma.max(1.0);
         for (i, prom, iref) in prominences(&v) {
-            let sigma = (s[i] * s[i] + s[iref] * s[iref]).sqrt();
+            // At a deep notch the line's own relative scatter is large (the motor barely
+            // moves there), and ln|H| +- sigma is no longer symmetric: what matters is that
+            // the notch's upper confidence bound |H|(1 + k s) stays below the shoulder.
+            // `ln(1 + k s)/k` is that bound per sigma; ~ s for small s, so peaks and clean
+            // notches are judged as before.
+            let s_line = if kind == ExtremumKind::Notch {
+                (1.0 + k * s[i]).ln() / k
+            } else {
+                s[i]
+            };
+            let sigma = (s_line * s_line + s[iref] * s[iref]).sqrt();
             let c = Candidate {
                 i,
                 kind,

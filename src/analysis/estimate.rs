@@ -1,0 +1,124 @@
+use super::AnalysisError;
+use crate::excitation::ExcitationKind;
+use crate::frf::{self, Frf, FrfKind, NonExcitedLevels};
+use crate::recording::{MotionSignal, Recording};
+use num_complex::Complex64;
+
+/// The FRF of a recording and how it was obtained.
+#[derive(Debug, Clone)]
+pub struct EstimatedFrf {
+    /// Torque -> motion response on the excited lines (periodic) or all Welch lines.
+    pub frf: Frf,
+    /// Levels at the non-excited lines (periodic excitation only).
+    pub nonexcited: Option<NonExcitedLevels>,
+    /// "periodic" or "welch_h1".
+    pub method: &'static str,
+    /// The motion signal used.
+    pub motion: MotionSignal,
+    /// Steady periods (periodic) or segments (Welch) averaged.
+    pub averages: usize,
+}
+
+/// Estimate the torque -> motion FRF of a recording.
+///
+/// Position is differenced to velocity (never `j w` times the DFT of a drifting position);
+/// periodic excitation uses the per-line periodic estimator with its variance, anything else
+/// the Welch H1 estimator with coherence. The result is limited to the excited band, or to
+/// `band_hz` when given.
+pub fn estimate_frf(
+    rec: &Recording,
+    band_hz: Option<[f64; 2]>,
+) -> Result<EstimatedFrf, AnalysisError> {
+    let fs = rec.sample_rate_hz;
+    let (motion, signal) = rec.preferred_motion().ok_or(AnalysisError::NoMotion)?;
+    let (y, kind) = match motion {
+        MotionSignal::Position => (
+            frf::differenced_velocity(signal, fs),
+            FrfKind::DifferencedVelocity,
+        ),
+        MotionSignal::Velocity => (signal.to_vec(), FrfKind::Velocity),
+        MotionSignal::Acceleration => (signal.to_vec(), FrfKind::Other),
+    };
+    let u = &rec.torque_cmd_nm;
+    let periodic = rec.sidecar.excitation.as_ref().filter(|e| {
+        e.kind != ExcitationKind::Other && e.kind != ExcitationKind::Chirp && e.period_samples > 0
+    });
+    let mut out = if let Some(info) = periodic {
+        let mut est = frf::PeriodicEstimator::from_info(info, fs, kind)?;
+        est.push(u, &y)?;
+        let frf = est.estimate()?;
+        EstimatedFrf {
+            nonexcited: est.nonexcited().ok(),
+            averages: est.periods_done(),
+            frf,
+            method: "periodic",
+            motion,
+        }
+    } else {
+        let n = u.len();
+        let mut nperseg = 256usize;
+        while nperseg * 16 <= n && nperseg < 1 << 16 {
+            nperseg *= 2;
+        }
+        if n < nperseg {
+            return Err(AnalysisError::TooShort {
+                samples: n,
+                needed: nperseg,
+            });
+        }
+        let mut w = frf::WelchH1::new(nperseg, nperseg / 2, frf::Window::Hann, fs)?.with_kind(kind);
+        w.push(u, &y)?;
+        EstimatedFrf {
+            frf: w.estimate()?,
+            nonexcited: None,
+            averages: w.segments(),
+            method: "welch_h1",
+            motion,
+        }
+    };
+    let band = band_hz.or_else(|| {
+        rec.sidecar
+            .excitation
+            .as_ref()
+            .and_then(|e| e.band_hz)
+            .filter(|_| out.method == "welch_h1")
+    });
+    if let Some([lo, hi]) = band {
+        out.frf.retain_band(|f| f >= lo && f <= hi);
+    }
+    // drop lines without input (zero or non-finite response)
+    let bad: Vec<bool> = out
+        .frf
+        .h
+        .iter()
+        .map(|h| !(h.re.is_finite() && h.im.is_finite()) || h.norm() == 0.0)
+        .collect();
+    if bad.iter().any(|b| *b) {
+        let mut i = 0;
+        out.frf.retain_band(|_| {
+            let keep = !bad[i];
+            i += 1;
+            keep
+        });
+    }
+    if out.frf.is_empty() {
+        return Err(AnalysisError::NoLines);
+    }
+    Ok(out)
+}
+
+/// A mobility-like view of an FRF whose kind the chain fit does not take: a measured
+/// velocity is taken as the differenced one, an acceleration is divided by `j w`.
+/// Good enough to locate resonances; not for the parameter fit.
+pub(crate) fn mobility_equivalent(frf: &Frf) -> Frf {
+    let mut out = frf.clone();
+    if frf.kind == FrfKind::Other {
+        for (i, f) in frf.freq_hz.iter().enumerate() {
+            let jw = Complex64::new(0.0, 2.0 * std::f64::consts::PI * f);
+            out.h[i] = frf.h[i] / jw;
+            out.var[i] = frf.var[i] / jw.norm_sqr();
+        }
+    }
+    out.kind = FrfKind::DifferencedVelocity;
+    out
+}

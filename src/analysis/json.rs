@@ -1,0 +1,38 @@
+use super::Analysis;
+use serde_json::{json, Value};
+
+/// The analysis as the JSON document of `flexid identify --json` (a stable contract):
+/// `{"model": {"masses", "inertia_kgm2", "stiffness_nm_per_rad", "resonance_hz",
+/// "antiresonance_hz", ...}, "total_inertia", "pairs", "paper", "exact", "fit", "orders",
+/// "frf", "notes"}`. `model` is `null` when no chain could be fitted (e.g. acceleration data).
+pub fn to_json(a: &Analysis) -> Value {
+    let f = &a.measured.frf;
+    json!({
+        "model": a.model,
+        "total_inertia": a.total_inertia,
+        "pairs": a.detection.pairs,
+        "rejected_candidates": a.detection.rejected,
+        "paper": a.paper,
+        "exact": a.exact,
+        "fit": a.fit.as_ref().map(|fit| json!({
+            "starts": fit.starts,
+            "starts_converged": fit.starts_converged,
+            "chi2_per_dof": fit.chi2_per_dof,
+            "cost": fit.cost,
+            "lines_used": fit.lines_used,
+            "residual_rms_db": fit.residual_rms_db,
+            "residual_rms_deg": fit.residual_rms_deg,
+        })),
+        "orders": a.orders,
+        "frf": {
+            "method": a.measured.method,
+            "averages": a.measured.averages,
+            "kind": f.kind,
+            "sample_rate_hz": a.sample_rate_hz,
+            "delay_samples": a.delay_samples,
+            "lines": f.len(),
+            "band_hz": [f.freq_hz.first(), f.freq_hz.last()],
+        },
+        "notes": a.notes,
+    })
+}

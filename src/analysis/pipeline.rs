@@ -1,0 +1,327 @@
+use super::estimate::{estimate_frf, mobility_equivalent, EstimatedFrf};
+use super::summary::ModelSummary;
+use crate::frf::{Frf, FrfError, FrfKind};
+use crate::identify::detect::{detect_pairs, ArRPair, DetectOptions, Detection};
+use crate::identify::error::IdentifyError;
+use crate::identify::exact::{chain_from_spectra, with_coupling_damping};
+use crate::identify::fit::{fit_chain, select_order, ChainFit, FitOptions, OrderCandidate};
+use crate::identify::inertia::{estimate_inertia, estimate_inertia_below_pairs, InertiaEstimate};
+use crate::identify::paper::{step_by_step, StepByStep};
+use crate::model::{Chain, ModelError, SampledChain};
+use crate::recording::Recording;
+use serde::Serialize;
+
+/// Errors of the analysis of a recording.
+#[derive(Debug, thiserror::Error)]
+pub enum AnalysisError {
+    #[error(
+        "the recording has no motion column (position_rad, velocity_rad_s or acceleration_rad_s2)"
+    )]
+    NoMotion,
+    #[error("the recording has {samples} samples; at least {needed} are needed")]
+    TooShort { samples: usize, needed: usize },
+    #[error("no frequency line with a usable estimate is left in the band")]
+    NoLines,
+    #[error("--masses {masses} is out of range: a chain has 1 to {max} bodies here")]
+    Masses { masses: usize, max: usize },
+    #[error("FRF estimation: {0}")]
+    Frf(#[from] FrfError),
+    #[error("identification: {0}")]
+    Identify(#[from] IdentifyError),
+    #[error("model: {0}")]
+    Model(#[from] ModelError),
+}
+
+/// Options of [`analyze`].
+#[derive(Debug, Clone)]
+pub struct AnalysisOptions {
+    /// Number of bodies of the model; chosen automatically when `None`.
+    pub masses: Option<usize>,
+    /// Largest number of bodies the automatic order choice considers.
+    pub max_masses: usize,
+    /// Analysis band [Hz]; the excited band when `None`.
+    pub band_hz: Option<[f64; 2]>,
+    /// Refinement options (starts, seed, ...). `delay_samples` is taken from the recording.
+    pub fit: FitOptions,
+    /// Detection thresholds.
+    pub detect: DetectOptions,
+}
+
+impl Default for AnalysisOptions {
+    fn default() -> Self {
+        AnalysisOptions {
+            masses: None,
+            max_masses: 6,
+            band_hz: None,
+            fit: FitOptions {
+                starts: 20,
+                ..FitOptions::default()
+            },
+            detect: DetectOptions::default(),
+        }
+    }
+}
+
+/// Where the total inertia came from.
+#[derive(Debug, Clone, Serialize)]
+pub struct TotalInertia {
+    /// Total inertia [kg m^2] (units of torque / (rad/s^2) when the torque column holds a
+    /// current or force instead).
+    pub j_kgm2: f64,
+    /// One-sigma uncertainty [kg m^2] (0 when given by the user).
+    pub std_kgm2: f64,
+    /// "sidecar" (given) or "low_frequency_gain" (paper step 1 on the measured FRF).
+    pub source: &'static str,
+    /// The estimate from the gain, when computed.
+    pub estimate: Option<InertiaEstimate>,
+}
+
+/// Everything one analysis found, step by step.
+#[derive(Debug, Clone)]
+pub struct Analysis {
+    /// The measured FRF (and how it was estimated).
+    pub measured: EstimatedFrf,
+    /// Sample rate [Hz].
+    pub sample_rate_hz: f64,
+    /// Whole samples of command delay assumed (from the recording's sidecar).
+    pub delay_samples: u32,
+    /// Total inertia (paper step 1).
+    pub total_inertia: Option<TotalInertia>,
+    /// Detected anti-resonance / resonance pairs.
+    pub detection: Detection,
+    /// The paper's step-by-step algorithm on the detected pairs.
+    pub paper: Option<StepByStep>,
+    /// The exact inverse of the detected spectra (undamped chain).
+    pub exact: Option<Chain>,
+    /// The refined model (when the FRF kind supports the chain fit).
+    pub fit: Option<ChainFit>,
+    /// Candidate orders considered by the automatic choice, with their criteria.
+    pub orders: Vec<OrderCandidate>,
+    /// The identified model, summarised for reports and JSON.
+    pub model: Option<ModelSummary>,
+    /// The identified model's FRF on the measured lines, on the same (sampled) footing.
+    pub model_frf: Option<Frf>,
+    /// Remarks for the reader: approximations, assumptions, limits.
+    pub notes: Vec<String>,
+}
+
+/// Analyse a recording: estimate its FRF and identify the compliant chain behind it.
+pub fn analyze(rec: &Recording, opts: &AnalysisOptions) -> Result<Analysis, AnalysisError> {
+    if let Some(m) = opts.masses {
+        if m == 0 || m > opts.max_masses.max(8) {
+            return Err(AnalysisError::Masses {
+                masses: m,
+                max: opts.max_masses.max(8),
+            });
+        }
+    }
+    let measured = estimate_frf(rec, opts.band_hz)?;
+    let fs = rec.sample_rate_hz;
+    let delay = rec.sidecar.io_delay_samples.unwrap_or(0);
+    let mut notes = Vec::new();
+    if let Some(src) = &rec.sidecar.source {
+        notes.push(format!("source: {src}"));
+    }
+    let fittable = matches!(
+        measured.frf.kind,
+        FrfKind::DifferencedVelocity | FrfKind::Position
+    );
+    let work = if fittable {
+        measured.frf.clone()
+    } else {
+        notes.push(match measured.frf.kind {
+            FrfKind::Other => "the response is an acceleration: resonances are located on H/(j w); the chain fit needs a motor position or velocity".into(),
+            _ => "the response is a recorded velocity, taken as the backward-differenced position for locating resonances; the chain fit needs the position".into(),
+        });
+        mobility_equivalent(&measured.frf)
+    };
+    let detect_opts = DetectOptions {
+        delay_samples: delay,
+        band_hz: opts.band_hz,
+        ..opts.detect.clone()
+    };
+    let detection = detect_pairs(&work, &detect_opts)?;
+    notes.extend(detection.notes.iter().cloned());
+    let mut analysis = Analysis {
+        measured,
+        sample_rate_hz: fs,
+        delay_samples: delay,
+        total_inertia: None,
+        detection,
+        paper: None,
+        exact: None,
+        fit: None,
+        orders: Vec::new(),
+        model: None,
+        model_frf: None,
+        notes,
+    };
+    let total = total_inertia(
+        rec,
+        &work,
+        &analysis.detection.pairs,
+        delay,
+        &mut analysis.notes,
+    );
+    let Some(total) = total else {
+        return Ok(analysis);
+    };
+    let j = total.j_kgm2;
+    analysis.total_inertia = Some(total);
+    // pairs that are fully observed
+    let pairs: Vec<&ArRPair> = analysis.detection.pairs.iter().collect();
+    let spectra: Vec<(f64, f64)> = pairs.iter().map(|p| (p.ar_hz, p.r_hz)).collect();
+    if !spectra.is_empty() {
+        match step_by_step(j, &spectra, None) {
+            Ok(s) => analysis.paper = Some(s),
+            Err(e) => analysis
+                .notes
+                .push(format!("step-by-step algorithm not applicable: {e}")),
+        }
+    }
+    let exact_for = |sel: &[(f64, f64)]| -> Option<Chain> {
+        let ar: Vec<f64> = sel.iter().map(|p| p.0).collect();
+        let r: Vec<f64> = sel.iter().map(|p| p.1).collect();
+        chain_from_spectra(j, &ar, &r)
+            .ok()
+            .map(|c| with_coupling_damping(c, 0.05))
+    };
+    analysis.exact = exact_for(&spectra).map(|mut c| {
+        c.damping_nms_per_rad.iter_mut().for_each(|d| *d = 0.0);
+        c
+    });
+    if let (Some(p), Some(e)) = (&analysis.paper, &analysis.exact) {
+        let worst = p
+            .chain
+            .inertia_kgm2
+            .iter()
+            .zip(&e.inertia_kgm2)
+            .chain(
+                p.chain
+                    .stiffness_nm_per_rad
+                    .iter()
+                    .zip(&e.stiffness_nm_per_rad),
+            )
+            .map(|(a, b)| ((a - b) / b).abs())
+            .fold(0.0, f64::max);
+        analysis.notes.push(format!(
+            "the step-by-step approximation differs from the exact inverse by up to {:.2} % (it treats each pair as an isolated two-body system)",
+            100.0 * worst
+        ));
+    }
+    if !fittable {
+        return Ok(analysis);
+    }
+    // Candidate initial chains, one per order: all pairs, then dropping the least prominent.
+    let mut by_prominence: Vec<usize> = (0..spectra.len()).collect();
+    by_prominence.sort_by(|&a, &b| {
+        let pa = pairs[a].depth_db.min(pairs[a].height_db);
+        let pb = pairs[b].depth_db.min(pairs[b].height_db);
+        pb.total_cmp(&pa)
+    });
+    let chain_with = |k: usize| -> Option<Chain> {
+        let mut keep: Vec<usize> = by_prominence[..k].to_vec();
+        keep.sort_unstable();
+        let sel: Vec<(f64, f64)> = keep.iter().map(|&i| spectra[i]).collect();
+        exact_for(&sel)
+    };
+    let fit_opts = FitOptions {
+        delay_samples: delay,
+        band_hz: opts.band_hz,
+        ..opts.fit.clone()
+    };
+    let fit = match opts.masses {
+        Some(m) => {
+            let k = m - 1;
+            let init = if k <= spectra.len() {
+                chain_with(k)
+            } else {
+                analysis.notes.push(format!(
+                    "{m} bodies asked for but only {} anti-resonance/resonance pairs were detected: the missing pairs start near the top of the band",
+                    spectra.len()
+                ));
+                let top = analysis
+                    .measured
+                    .frf
+                    .freq_hz
+                    .last()
+                    .copied()
+                    .unwrap_or(fs / 4.0);
+                let mut sel = spectra.clone();
+                let mut f = top * 0.5;
+                while sel.len() < k {
+                    sel.push((f, f * 1.3));
+                    f *= 1.5;
+                }
+                exact_for(&sel)
+            };
+            let init = init.ok_or(IdentifyError::InvalidArgument(
+                "no initial chain could be formed from the detected pairs".into(),
+            ))?;
+            fit_chain(&analysis.measured.frf, &init, &fit_opts)?
+        }
+        None => {
+            let hi = spectra.len().min(opts.max_masses.saturating_sub(1));
+            let lo = hi.saturating_sub(2);
+            let candidates: Vec<Chain> = (lo..=hi).filter_map(chain_with).collect();
+            let sel = select_order(&analysis.measured.frf, &candidates, &fit_opts)?;
+            analysis.orders = sel.candidates;
+            sel.fit
+        }
+    };
+    let sc = SampledChain::new(&fit.chain, fs, delay)?;
+    let mut model_frf = analysis.measured.frf.clone();
+    for (i, f) in model_frf.freq_hz.iter().enumerate() {
+        model_frf.h[i] = match model_frf.kind {
+            FrfKind::Position => sc.position_frf(*f),
+            _ => sc.frf(*f),
+        };
+        model_frf.var[i] = 0.0;
+    }
+    model_frf.coherence = None;
+    analysis.model = Some(ModelSummary::new(&fit, &sc));
+    analysis.model_frf = Some(model_frf);
+    analysis.fit = Some(fit);
+    Ok(analysis)
+}
+
+fn total_inertia(
+    rec: &Recording,
+    frf: &Frf,
+    pairs: &[ArRPair],
+    delay: u32,
+    notes: &mut Vec<String>,
+) -> Option<TotalInertia> {
+    let lo = frf.freq_hz.first().copied().unwrap_or(0.0);
+    let hi = frf.freq_hz.last().copied().unwrap_or(0.0);
+    let est = match estimate_inertia_below_pairs(frf, pairs, (lo * 4.0).min(hi), delay) {
+        Ok(e) => Some(e),
+        Err(e) => {
+            notes.push(format!("total inertia from the low-frequency gain: {e}"));
+            // fall back to the lowest decade of lines, flagged
+            estimate_inertia(frf, [lo, (lo * 2.0).min(hi)], delay).ok().inspect(|_| {
+                notes.push("total inertia taken from the lowest lines although a compliant pair lies below them: it is biased low".into());
+            })
+        }
+    };
+    if let Some(j) = rec.sidecar.total_inertia_kgm2 {
+        if let Some(e) = &est {
+            notes.push(format!(
+                "total inertia given in the sidecar: {j:.6e} kg m^2 (the low-frequency gain says {:.6e} +- {:.1e})",
+                e.j_kgm2, e.std_kgm2
+            ));
+        }
+        return Some(TotalInertia {
+            j_kgm2: j,
+            std_kgm2: 0.0,
+            source: "sidecar",
+            estimate: est,
+        });
+    }
+    est.map(|e| TotalInertia {
+        j_kgm2: e.j_kgm2,
+        std_kgm2: e.std_kgm2,
+        source: "low_frequency_gain",
+        estimate: Some(e),
+    })
+}

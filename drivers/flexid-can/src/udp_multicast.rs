@@ -12,9 +12,9 @@
 //!
 //! A python-can bus therefore receives its own frames (loop on, same socket). flexid does
 //! not, so that its handles behave like CAN nodes: each handle has a receive socket set
-//! up exactly as python-can's, and a separate send socket, connected to `group:port`,
-//! whose local address (IP and ephemeral port) identifies the handle's own datagrams,
-//! which the receive side drops. Frames of other flexid handles (other send sockets) and
+//! up exactly as python-can's, and a separate send socket with an ephemeral port; that
+//! port (with the source IP the kernel picks for the group) identifies the handle's own
+//! datagrams, which the receive side drops. Frames of other flexid handles (other send sockets) and
 //! of python-can processes (source port 43113) are received. [`UdpConfig::receive_own`]
 //! turns the filter off.
 //!
@@ -116,11 +116,27 @@ pub struct UdpMulticastBus {
     name: Arc<str>,
     rx: UdpSocket,
     tx: UdpSocket,
-    /// The send socket's local address: datagrams from it are this handle's own.
-    own: SocketAddr,
+    /// `group:port`.
+    dest: SocketAddr,
+    /// Where this handle's datagrams come from.
+    own: OwnAddr,
     rx_mode: RxMode,
     stats: BusStats,
     buf: Box<[u8; MAX_DATAGRAM]>,
+}
+
+/// The source of a handle's own datagrams: its send socket's port and the source IP the
+/// kernel picks for the group (`None` if that could not be learnt: port alone decides).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct OwnAddr {
+    ip: Option<IpAddr>,
+    port: u16,
+}
+
+impl OwnAddr {
+    fn matches(&self, from: SocketAddr) -> bool {
+        from.port() == self.port && self.ip.is_none_or(|ip| ip == from.ip())
+    }
 }
 
 /// The receive socket's current blocking mode (changed only when the timeout changes).
@@ -169,43 +185,38 @@ impl UdpMulticastBus {
         }
         .map_err(err("join multicast group"))?;
 
-        // Send socket: own ephemeral port, connected so that its local address is known.
-        let tx = Socket::new(domain, Type::DGRAM, Some(Protocol::UDP)).map_err(err("socket"))?;
-        match config.group {
-            IpAddr::V4(_) => {
-                tx.set_multicast_ttl_v4(config.hop_limit)
-                    .map_err(err("IP_MULTICAST_TTL"))?;
-                tx.set_multicast_loop_v4(true)
-                    .map_err(err("IP_MULTICAST_LOOP"))?;
-                if let Some(ifa) = config.interface_v4 {
-                    tx.set_multicast_if_v4(&ifa)
-                        .map_err(err("IP_MULTICAST_IF"))?;
-                }
-            }
-            IpAddr::V6(_) => {
-                tx.set_multicast_hops_v6(config.hop_limit)
-                    .map_err(err("IPV6_MULTICAST_HOPS"))?;
-                tx.set_multicast_loop_v6(true)
-                    .map_err(err("IPV6_MULTICAST_LOOP"))?;
-                if config.interface_v6 != 0 {
-                    tx.set_multicast_if_v6(config.interface_v6)
-                        .map_err(err("IPV6_MULTICAST_IF"))?;
-                }
-            }
-        }
-        tx.connect(&SockAddr::from(dest))
-            .map_err(err("connect send socket"))?;
-        let own = tx
+        // Send socket: its own ephemeral port identifies this handle's datagrams. (Not
+        // connected: on Linux a connected UDP socket's multicast to a group routed via
+        // `lo` is not looped back to the group's members.)
+        let tx = Self::send_socket(&config, domain).map_err(err("configure send socket"))?;
+        let unspecified: SocketAddr = match config.group {
+            IpAddr::V4(_) => (Ipv4Addr::UNSPECIFIED, 0).into(),
+            IpAddr::V6(_) => (Ipv6Addr::UNSPECIFIED, 0).into(),
+        };
+        tx.bind(&unspecified.into())
+            .map_err(err("bind send socket"))?;
+        let port = tx
             .local_addr()
             .map_err(err("getsockname"))?
             .as_socket()
-            .ok_or_else(|| err("getsockname")(io::Error::other("not an IP address")))?;
+            .map_or(0, |a| a.port());
+        // The source IP the kernel will pick: ask a connected twin (no datagram is sent).
+        let source = Self::send_socket(&config, domain)
+            .and_then(|probe| {
+                probe.connect(&SockAddr::from(dest))?;
+                probe.local_addr()
+            })
+            .ok()
+            .and_then(|a| a.as_socket())
+            .map(|a| a.ip());
+        let own = OwnAddr { ip: source, port };
 
         Ok(Self {
             config,
             name,
             rx: rx.into(),
             tx: tx.into(),
+            dest,
             own,
             rx_mode: RxMode::Unset,
             stats: BusStats::default(),
@@ -223,9 +234,36 @@ impl UdpMulticastBus {
         &self.config
     }
 
-    /// The address this handle's datagrams come from (its send socket).
+    /// The address this handle's datagrams come from (its send socket; IP unspecified
+    /// when it could not be learnt).
     pub fn local_addr(&self) -> SocketAddr {
-        self.own
+        let ip = self.own.ip.unwrap_or(match self.config.group {
+            IpAddr::V4(_) => Ipv4Addr::UNSPECIFIED.into(),
+            IpAddr::V6(_) => Ipv6Addr::UNSPECIFIED.into(),
+        });
+        SocketAddr::new(ip, self.own.port)
+    }
+
+    /// A UDP socket with the multicast send options of `config`.
+    fn send_socket(config: &UdpConfig, domain: Domain) -> io::Result<Socket> {
+        let tx = Socket::new(domain, Type::DGRAM, Some(Protocol::UDP))?;
+        match config.group {
+            IpAddr::V4(_) => {
+                tx.set_multicast_ttl_v4(config.hop_limit)?;
+                tx.set_multicast_loop_v4(true)?;
+                if let Some(ifa) = config.interface_v4 {
+                    tx.set_multicast_if_v4(&ifa)?;
+                }
+            }
+            IpAddr::V6(_) => {
+                tx.set_multicast_hops_v6(config.hop_limit)?;
+                tx.set_multicast_loop_v6(true)?;
+                if config.interface_v6 != 0 {
+                    tx.set_multicast_if_v6(config.interface_v6)?;
+                }
+            }
+        }
+        Ok(tx)
     }
 
     fn set_rx_mode(&mut self, mode: RxMode) -> io::Result<()> {
@@ -284,7 +322,7 @@ impl CanBus for UdpMulticastBus {
     fn send(&mut self, frame: &CanFrame) -> Result<(), BusError> {
         let mut buf = [0u8; MAX_ENCODED_LEN];
         let datagram = pycan_wire::encode(frame, unix_seconds(), &mut buf);
-        match self.tx.send(datagram) {
+        match self.tx.send_to(datagram, self.dest) {
             Ok(n) if n == datagram.len() => {
                 self.stats.sent += 1;
                 Ok(())
@@ -337,7 +375,7 @@ impl CanBus for UdpMulticastBus {
                 Err(e) => return Err(rx_error(&self.name, e)),
             };
             let timestamp = Instant::now();
-            if from == self.own && !self.config.receive_own {
+            if !self.config.receive_own && self.own.matches(from) {
                 continue;
             }
             match decode_datagram(&self.name, &self.buf[..len], from) {

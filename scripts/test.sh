@@ -18,6 +18,9 @@ step "toolchain"
 cargo --version
 rustc --version
 
+step "python peers for the interop tests (python-can, msgpack) and loopback multicast"
+scripts/pyenv-interop.sh
+
 step "build (release, once for every stage)"
 cargo build --release --workspace --all-targets
 

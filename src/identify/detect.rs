@@ -604,7 +604,10 @@ mod tests {
             .map(|k| 2.0 * 50f64.powf(k as f64 / (n - 1) as f64))
             .collect();
         let mode = |f: f64, fn_hz: f64| {
-            let (w, wn) = (2.0 * std::f64::consts::PI * f, 2.0 * std::f64::consts::PI * fn_hz);
+            let (w, wn) = (
+                2.0 * std::f64::consts::PI * f,
+                2.0 * std::f64::consts::PI * fn_hz,
+            );
             Complex64::new(1.0, 0.0) / Complex64::new(wn * wn - w * w, 2.0 * 0.02 * wn * w)
         };
         let h: Vec<Complex64> = freq_hz
@@ -630,18 +633,12 @@ mod tests {
         let det = detect_pairs(&non_collocated(1e-3), &DetectOptions::default()).unwrap();
         assert_eq!(det.peaks.len(), 2, "{det:?}");
         for (p, want) in det.peaks.iter().zip([10.0, 30.0]) {
-            assert!(
-                (p.freq_hz / want - 1.0).abs() < 0.01,
-                "{p:?} vs {want} Hz"
-            );
+            assert!((p.freq_hz / want - 1.0).abs() < 0.01, "{p:?} vs {want} Hz");
             assert!(p.std_hz.is_finite() && p.prominence_db >= 6.0 && p.prominence_sigma >= 5.0);
         }
         // the 30 Hz resonance has no anti-resonance below it: it is not a pair ...
         assert!(!det.peaks[1].paired);
-        assert!(det
-            .pairs
-            .iter()
-            .all(|p| (p.r_hz / 30.0 - 1.0).abs() > 0.05));
+        assert!(det.pairs.iter().all(|p| (p.r_hz / 30.0 - 1.0).abs() > 0.05));
         // ... but the pairing reports it as rejected
         assert!(det
             .rejected

@@ -3,14 +3,19 @@ use serde_json::{json, Value};
 
 /// The analysis as the JSON document of `flexid identify --json` (a stable contract):
 /// `{"model": {"masses", "inertia_kgm2", "stiffness_nm_per_rad", "resonance_hz",
-/// "antiresonance_hz", ...}, "total_inertia", "pairs", "paper", "exact", "fit", "orders",
+/// "antiresonance_hz", ...}, "total_inertia", "pairs", "resonance_peaks_hz",
+/// "resonance_peaks", "paper", "exact", "fit", "orders",
 /// "frf", "notes"}`. `model` is `null` when no chain could be fitted (e.g. acceleration data).
+/// `resonance_peaks_hz` lists every significant peak whether or not it is part of an AR/R
+/// pair (structures that are not a free chain: suspended airframes, non-collocated sensors).
 pub fn to_json(a: &Analysis) -> Value {
     let f = &a.measured.frf;
     json!({
         "model": a.model,
         "total_inertia": a.total_inertia,
         "pairs": a.detection.pairs,
+        "resonance_peaks_hz": a.detection.peaks.iter().map(|p| p.freq_hz).collect::<Vec<_>>(),
+        "resonance_peaks": a.detection.peaks,
         "rejected_candidates": a.detection.rejected,
         "paper": a.paper,
         "exact": a.exact,

@@ -120,6 +120,22 @@ pub fn render_report(a: &Analysis, title: &str) -> String {
             r.kind, r.freq_hz, r.prominence_db, r.prominence_sigma, r.reason
         );
     }
+    if !a.detection.peaks.is_empty() {
+        let _ = writeln!(
+            s,
+            "  significant resonance peaks (paired or not; * = resonance of a pair above):"
+        );
+        for p in &a.detection.peaks {
+            let _ = writeln!(
+                s,
+                "    {:>20} {} ({:.1} dB, {:.0} sigma)",
+                freq(p.freq_hz, p.std_hz, false, ""),
+                if p.paired { "*" } else { " " },
+                p.prominence_db,
+                p.prominence_sigma
+            );
+        }
+    }
     if let Some(p) = &a.paper {
         let _ = writeln!(s);
         let _ = writeln!(

@@ -17,6 +17,12 @@
 //!    anti-resonance, pole = resonance) with standard deviations; if that fit fails, by a
 //!    parabola through `ln |R|` versus `ln f` at the extremum.
 //!
+//! 4. Independently of the pairing, every peak of `ln |R|` that passed the significance test
+//!    of step 1 is listed in [`Detection::peaks`]: on structures that are not a free chain
+//!    driven and measured at the motor (a suspended airframe, a non-collocated sensor) the
+//!    AR/R alternation and the +180 deg phase rise need not hold, yet the resonances are
+//!    still the significant peaks.
+//!
 //! A resonance whose anti-resonance lies below the lowest line (the phase is already
 //! spring-like at the start) is reported with `ar_below_band`; an anti-resonance whose
 //! resonance lies above the highest line with `r_above_band`.
@@ -108,11 +114,32 @@ pub struct RejectedCandidate {
     pub reason: String,
 }
 
+/// A significant resonance peak, found independently of the AR/R pairing.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ResonancePeak {
+    /// Frequency [Hz]: the pair's refined resonance when `paired`, else the vertex of a
+    /// parabola through `ln |R|` versus `ln f` at the peak line.
+    pub freq_hz: f64,
+    /// Standard deviation of `freq_hz` [Hz] (from the line variances).
+    pub std_hz: f64,
+    /// Prominence of the peak [dB].
+    pub prominence_db: f64,
+    /// Prominence in standard deviations of the lines involved.
+    pub prominence_sigma: f64,
+    /// The peak is the resonance of an accepted AR/R pair.
+    pub paired: bool,
+}
+
 /// Result of [`detect_pairs`].
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Detection {
     /// Accepted pairs, ascending in frequency.
     pub pairs: Vec<ArRPair>,
+    /// All peaks that pass the significance thresholds (`min_depth_db` and `min_sigma`),
+    /// paired or not, ascending in frequency: the resonances of the structure whether or not
+    /// it behaves as a free chain.
+    #[serde(default)]
+    pub peaks: Vec<ResonancePeak>,
     /// Candidates that were rejected (only those with a prominence above 1 dB and 3 sigma,
     /// so that plain noise does not fill the report).
     pub rejected: Vec<RejectedCandidate>,
@@ -200,6 +227,7 @@ pub fn detect_pairs(frf: &Frf, opts: &DetectOptions) -> Result<Detection, Identi
 
     let mut det = Detection {
         pairs: Vec::new(),
+        peaks: Vec::new(),
         rejected: Vec::new(),
         notes: Vec::new(),
     };
@@ -255,6 +283,7 @@ pub fn detect_pairs(frf: &Frf, opts: &DetectOptions) -> Result<Detection, Identi
     let min_rise = opts.min_phase_rise_deg.to_radians();
     let mut k = 0;
     let mut lower_bound = 0usize; // first line index after the previous accepted pair
+    let mut paired_peaks: Vec<(usize, f64, f64)> = Vec::new(); // (line, r_hz, r_std_hz)
     while k < cands.len() {
         let c = cands[k];
         match c.kind {
@@ -267,15 +296,10 @@ pub fn detect_pairs(frf: &Frf, opts: &DetectOptions) -> Result<Detection, Identi
                         let rise = top - base;
                         if rise >= min_rise {
                             let upper = cands.get(k + 2).map_or(m, |x| x.i);
-                            det.pairs.push(refine_pair(
-                                &nr,
-                                &y,
-                                Some(c),
-                                Some(n),
-                                lower_bound,
-                                upper,
-                                rise,
-                            ));
+                            let p =
+                                refine_pair(&nr, &y, Some(c), Some(n), lower_bound, upper, rise);
+                            paired_peaks.push((n.i, p.r_hz, p.r_std_hz));
+                            det.pairs.push(p);
                             lower_bound = n.i;
                             k += 2;
                             continue;
@@ -332,6 +356,7 @@ pub fn detect_pairs(frf: &Frf, opts: &DetectOptions) -> Result<Detection, Identi
                 if first && head >= min_rise && top >= min_rise {
                     let upper = cands.get(k + 1).map_or(m, |x| x.i);
                     let p = refine_pair(&nr, &y, None, Some(c), 0, upper, top);
+                    paired_peaks.push((c.i, p.r_hz, p.r_std_hz));
                     det.notes.push(format!(
                         "resonance at {:.4} Hz: its anti-resonance lies below the lowest \
                          line ({:.4} Hz); the phase is already spring-like there",
@@ -350,6 +375,24 @@ pub fn detect_pairs(frf: &Frf, opts: &DetectOptions) -> Result<Detection, Identi
             }
         }
     }
+    // 4. all significant peaks, paired or not
+    det.peaks = cands
+        .iter()
+        .filter(|c| c.kind == ExtremumKind::Peak)
+        .map(|c| {
+            let paired = paired_peaks.iter().find(|p| p.0 == c.i);
+            let (freq_hz, std_hz) =
+                paired.map_or_else(|| parabola(f, &y, c.i, 1.0, s), |p| (p.1, p.2));
+            ResonancePeak {
+                freq_hz,
+                std_hz,
+                prominence_db: c.prom * DB,
+                prominence_sigma: c.prom / c.sigma,
+                paired: paired.is_some(),
+            }
+        })
+        .collect();
+    det.peaks.sort_by(|a, b| a.freq_hz.total_cmp(&b.freq_hz));
     det.pairs.sort_by(|a, b| a.r_hz.total_cmp(&b.r_hz));
     det.rejected.sort_by(|a, b| a.freq_hz.total_cmp(&b.freq_hz));
     Ok(det)
@@ -543,4 +586,96 @@ fn parabola(f: &[f64], y: &[f64], i: usize, sign: f64, sigma: &[f64]) -> (f64, f
     let spacing = 0.5 * (x(i + 1) - x(i - 1)) / 12f64.sqrt();
     let sd = if var > 0.0 { var.sqrt() } else { spacing };
     (hz, hz * sd)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::frf::FrfKind;
+
+    const FS: f64 = 4000.0;
+
+    /// Velocity response of two grounded modes (10 Hz and 30 Hz, 2 % damping) with residues
+    /// of opposite sign, as a non-collocated sensor sees them: no anti-resonance between the
+    /// modes, so the second resonance cannot be paired. Relative line std `rel`.
+    fn non_collocated(rel: f64) -> Frf {
+        let n = 400;
+        let freq_hz: Vec<f64> = (0..n)
+            .map(|k| 2.0 * 50f64.powf(k as f64 / (n - 1) as f64))
+            .collect();
+        let mode = |f: f64, fn_hz: f64| {
+            let (w, wn) = (
+                2.0 * std::f64::consts::PI * f,
+                2.0 * std::f64::consts::PI * fn_hz,
+            );
+            Complex64::new(1.0, 0.0) / Complex64::new(wn * wn - w * w, 2.0 * 0.02 * wn * w)
+        };
+        let h: Vec<Complex64> = freq_hz
+            .iter()
+            .map(|&f| {
+                let jw = Complex64::new(0.0, 2.0 * std::f64::consts::PI * f);
+                jw * (mode(f, 10.0) - 0.5 * mode(f, 30.0))
+            })
+            .collect();
+        let var = h.iter().map(|x| (rel * x.norm()).powi(2)).collect();
+        Frf {
+            freq_hz,
+            h,
+            var,
+            coherence: None,
+            kind: FrfKind::DifferencedVelocity,
+            sample_rate_hz: FS,
+        }
+    }
+
+    #[test]
+    fn peaks_list_resonances_that_the_pairing_rejects() {
+        let det = detect_pairs(&non_collocated(1e-3), &DetectOptions::default()).unwrap();
+        assert_eq!(det.peaks.len(), 2, "{det:?}");
+        for (p, want) in det.peaks.iter().zip([10.0, 30.0]) {
+            assert!((p.freq_hz / want - 1.0).abs() < 0.01, "{p:?} vs {want} Hz");
+            assert!(p.std_hz.is_finite() && p.prominence_db >= 6.0 && p.prominence_sigma >= 5.0);
+        }
+        // the 30 Hz resonance has no anti-resonance below it: it is not a pair ...
+        assert!(!det.peaks[1].paired);
+        assert!(det.pairs.iter().all(|p| (p.r_hz / 30.0 - 1.0).abs() > 0.05));
+        // ... but the pairing reports it as rejected
+        assert!(det
+            .rejected
+            .iter()
+            .any(|r| r.kind == ExtremumKind::Peak && (r.freq_hz / 30.0 - 1.0).abs() < 0.02));
+    }
+
+    #[test]
+    fn peaks_need_significance_from_the_line_variance() {
+        // Same response, but each line uncertain by 200 %: no peak is significant.
+        let det = detect_pairs(&non_collocated(2.0), &DetectOptions::default()).unwrap();
+        assert!(det.peaks.is_empty(), "{:?}", det.peaks);
+        assert!(det.pairs.is_empty(), "{:?}", det.pairs);
+    }
+
+    #[test]
+    fn a_paired_peak_carries_the_refined_resonance() {
+        let ch = crate::model::Chain::new(vec![2e-3, 6e-3], vec![400.0], vec![0.02]).unwrap();
+        let sc = crate::model::SampledChain::new(&ch, FS, 0).unwrap();
+        let freq_hz: Vec<f64> = (0..500)
+            .map(|k| 2.0 * 500f64.powf(k as f64 / 499.0))
+            .collect();
+        let h: Vec<Complex64> = freq_hz.iter().map(|&f| sc.frf(f)).collect();
+        let var = h.iter().map(|x| (1e-3 * x.norm()).powi(2)).collect();
+        let frf = Frf {
+            freq_hz,
+            h,
+            var,
+            coherence: None,
+            kind: FrfKind::DifferencedVelocity,
+            sample_rate_hz: FS,
+        };
+        let det = detect_pairs(&frf, &DetectOptions::default()).unwrap();
+        assert_eq!(det.pairs.len(), 1, "{det:?}");
+        assert_eq!(det.peaks.len(), 1, "{det:?}");
+        assert!(det.peaks[0].paired);
+        assert_eq!(det.peaks[0].freq_hz, det.pairs[0].r_hz);
+        assert!((det.peaks[0].freq_hz / ch.resonances_hz()[0] - 1.0).abs() < 0.01);
+    }
 }

@@ -1,0 +1,447 @@
+//! Real measurement data through the real binary: `flexid import PRESET`, `flexid identify`
+//! and `flexid bode`, compared with the published figures named in the data set's
+//! `SOURCE.md` (`shared/data/*/SOURCE.md` beside the repository; `FLEXID_SHARED_DATA`
+//! overrides the location). A test whose data file is absent is SKIPPED with a message, it
+//! does not fail: the data is not part of the repository.
+//!
+//! Each test prints (eprintln; `cargo test --release --test real_data -- --nocapture`) its
+//! rows of the table "found vs published" that is kept in `tests/REAL_DATA.md`.
+
+use serde_json::Value;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+const BIN: &str = env!("CARGO_BIN_EXE_flexid");
+
+/// The data file of `preset`, or `None` (after a SKIP message) when it is absent.
+fn data_file(preset: &str, test: &str) -> Option<PathBuf> {
+    let (rel, _) = flexid::import::preset(preset).expect("known preset");
+    let path = flexid::import::shared_data_dir().join(rel);
+    if path.is_file() {
+        Some(path)
+    } else {
+        eprintln!(
+            "SKIP {test}: {} not found (set {} to the shared data folder)",
+            path.display(),
+            flexid::import::SHARED_DATA_ENV
+        );
+        None
+    }
+}
+
+/// Runs the binary; panics with its output when it fails. Returns stdout.
+fn run(args: &[&str]) -> String {
+    let out = Command::new(BIN)
+        .args(args)
+        .env(
+            flexid::import::SHARED_DATA_ENV,
+            flexid::import::shared_data_dir(),
+        )
+        .output()
+        .expect("run flexid");
+    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
+    assert!(
+        out.status.success(),
+        "flexid {args:?} failed ({}):\n{stdout}\n{}",
+        out.status,
+        String::from_utf8_lossy(&out.stderr)
+    );
+    stdout
+}
+
+/// `flexid import PRESET --out DIR/PRESET.csv`.
+fn import(preset: &str, dir: &Path) -> PathBuf {
+    let rec = dir.join(format!("{preset}.csv"));
+    run(&["import", preset, "--out", rec.to_str().unwrap()]);
+    assert!(rec.is_file());
+    rec
+}
+
+/// `flexid identify REC [extra] --json OUT`: the printed report and the JSON.
+fn identify(rec: &Path, extra: &[&str], tag: &str) -> (String, Value) {
+    let json = rec.with_file_name(format!("{tag}.json"));
+    let mut args = vec!["identify", rec.to_str().unwrap()];
+    args.extend_from_slice(extra);
+    args.extend_from_slice(&["--json", json.to_str().unwrap()]);
+    let report = run(&args);
+    let v: Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    (report, v)
+}
+
+/// `flexid bode REC --out DIR/TAG.svg` writes an SVG.
+fn bode(rec: &Path, tag: &str) {
+    let svg = rec.with_file_name(format!("{tag}.svg"));
+    run(&[
+        "bode",
+        rec.to_str().unwrap(),
+        "--out",
+        svg.to_str().unwrap(),
+    ]);
+    let text = std::fs::read_to_string(&svg).unwrap();
+    assert!(text.contains("<svg"), "{tag}: not an SVG");
+}
+
+fn floats(v: &Value) -> Vec<f64> {
+    v.as_array()
+        .map(|a| a.iter().filter_map(Value::as_f64).collect())
+        .unwrap_or_default()
+}
+
+fn rel(a: f64, b: f64) -> f64 {
+    (a / b - 1.0).abs()
+}
+
+/// The value of `found` nearest to `want`.
+fn nearest(found: &[f64], want: f64) -> Option<f64> {
+    found
+        .iter()
+        .copied()
+        .min_by(|a, b| rel(*a, want).total_cmp(&rel(*b, want)))
+}
+
+/// One row of the results table; printed so that it can be copied into the README.
+fn row(set: &str, what: &str, published: &str, found: String, tol: &str) {
+    eprintln!("| {set} | {what} | {published} | {found} | {tol} |");
+}
+
+fn hz(v: &[f64]) -> String {
+    let items: Vec<String> = v.iter().map(|x| format!("{x:.2}")).collect();
+    items.join(", ")
+}
+
+// ---------------------------------------------------------------------------------------
+// 1. FdiTools two-inertia motor bench: iq [A] -> motor angle theta_mx.
+// ---------------------------------------------------------------------------------------
+
+/// Reference (SOURCE.md, quick check on the 1 Hz grid of the 2500-sample period): motor side
+/// anti-resonance ~53 Hz, resonance ~77 Hz, the same for TypeA and TypeB.
+const FDI_AR_HZ: f64 = 53.0;
+const FDI_R_HZ: f64 = 77.0;
+/// +-3 %: the reference values are read off a 1 Hz grid (+-0.5 Hz, i.e. +-1 % at 53 Hz),
+/// and "anti-resonance/resonance" there means the extremum of |H| on that grid whereas we
+/// report the zero/pole of a local rational fit and of the damped chain model (with 2-3 %
+/// damping the extrema of |H| and the undamped frequencies differ by up to ~1 %). Tighter
+/// agreement is asserted between TypeA and TypeB (same bench, different excitation).
+const FDI_TOL: f64 = 0.03;
+
+/// (model AR, model R, pair AR, pair R) for one excitation type.
+fn fditools(preset: &str, test: &str) -> Option<[f64; 4]> {
+    data_file(preset, test)?;
+    let dir = tempfile::tempdir().unwrap();
+    let rec = import(preset, dir.path());
+    let mut out = None;
+    for (extra, tag) in [(&["--masses", "2"][..], "fixed"), (&[][..], "auto")] {
+        let (report, v) = identify(&rec, extra, tag);
+        let model = &v["model"];
+        assert_eq!(
+            model["masses"].as_u64(),
+            Some(2),
+            "{preset} {tag}: a two-inertia bench (FdiTools: n = 4); report:\n{report}"
+        );
+        let ar = floats(&model["antiresonance_hz"]);
+        let r = floats(&model["resonance_hz"]);
+        assert_eq!((ar.len(), r.len()), (1, 1), "{preset} {tag}: {model}");
+        let pairs = v["pairs"].as_array().unwrap();
+        assert_eq!(pairs.len(), 1, "{preset} {tag}: pairs {pairs:?}");
+        let (par, pr) = (
+            pairs[0]["ar_hz"].as_f64().unwrap(),
+            pairs[0]["r_hz"].as_f64().unwrap(),
+        );
+        for (what, f, want) in [
+            ("model anti-resonance", ar[0], FDI_AR_HZ),
+            ("model resonance", r[0], FDI_R_HZ),
+            ("detected anti-resonance", par, FDI_AR_HZ),
+            ("detected resonance", pr, FDI_R_HZ),
+        ] {
+            assert!(
+                rel(f, want) < FDI_TOL,
+                "{preset} {tag}: {what} {f:.3} Hz vs ~{want} Hz (+-{} %)",
+                100.0 * FDI_TOL
+            );
+        }
+        let r_peaks = floats(&v["resonance_peaks_hz"]);
+        assert!(
+            nearest(&r_peaks, FDI_R_HZ).is_some_and(|f| rel(f, FDI_R_HZ) < FDI_TOL),
+            "{preset} {tag}: resonance peaks {r_peaks:?}"
+        );
+        // inertias are in A-based units: the input is the current; the notes must say so
+        let notes = v["notes"].to_string();
+        assert!(
+            notes.contains("current iq [A]"),
+            "{preset}: notes do not say the input is a current: {notes}"
+        );
+        out = Some([ar[0], r[0], par, pr]);
+    }
+    bode(&rec, "bode");
+    out
+}
+
+fn fditools_rows(set: &str, f: [f64; 4]) {
+    row(
+        set,
+        "anti-resonance [Hz] (model / detected)",
+        "~53 (quick check, SOURCE.md)",
+        format!("{:.2} / {:.2}", f[0], f[2]),
+        "+-3 %",
+    );
+    row(
+        set,
+        "resonance [Hz] (model / detected)",
+        "~77 (quick check, SOURCE.md)",
+        format!("{:.2} / {:.2}", f[1], f[3]),
+        "+-3 %",
+    );
+    row(
+        set,
+        "order (automatic)",
+        "2-inertia bench, n = 4 (FdiTools)",
+        "2 masses".into(),
+        "exact",
+    );
+}
+
+#[test]
+fn fditools_motor_bench_type_a_and_b() {
+    let a = fditools("fditools-typeA", "fditools_motor_bench_type_a_and_b");
+    let b = fditools("fditools-typeB", "fditools_motor_bench_type_a_and_b");
+    if let Some(a) = a {
+        fditools_rows("FdiTools TypeA (Schroeder)", a);
+    }
+    if let Some(b) = b {
+        fditools_rows("FdiTools TypeB (odd-odd random)", b);
+    }
+    if let (Some(a), Some(b)) = (a, b) {
+        // Same bench, two excitations: the model frequencies agree to 1 %.
+        for k in 0..2 {
+            assert!(rel(a[k], b[k]) < 0.01, "TypeA {a:?} vs TypeB {b:?}");
+        }
+    }
+}
+
+/// Load side (non-collocated): the same resonance, no anti-resonance; the pairing cannot
+/// use it, the list of significant peaks must still show the resonance.
+#[test]
+fn fditools_motor_bench_load_side_shows_the_resonance() {
+    let preset = "fditools-typeA-load";
+    if data_file(preset, "fditools_motor_bench_load_side_shows_the_resonance").is_none() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let rec = import(preset, dir.path());
+    let (report, v) = identify(&rec, &[], "auto");
+    let peaks = floats(&v["resonance_peaks_hz"]);
+    let f = nearest(&peaks, FDI_R_HZ);
+    assert!(
+        f.is_some_and(|f| rel(f, FDI_R_HZ) < FDI_TOL),
+        "{preset}: resonance peaks {peaks:?}; report:\n{report}"
+    );
+    row(
+        "FdiTools TypeA load side",
+        "resonance [Hz] (significant peak)",
+        "~77, no anti-resonance (quick check)",
+        format!("{:.2} (all peaks: {})", f.unwrap(), hz(&peaks)),
+        "+-3 %",
+    );
+}
+
+// ---------------------------------------------------------------------------------------
+// 2. F-16 ground vibration test: shaker force -> acceleration at the excitation point.
+// ---------------------------------------------------------------------------------------
+
+/// Published (Noel & Schoukens 2017, F16Benchmark.pdf): first flexible mode (wing bending)
+/// "around 5.2 Hz", wing torsion "around 7.3 Hz". +-2 %: "around" a one-decimal figure
+/// (+-0.05 Hz = +-1 % at 5.2 Hz) plus one line spacing (400/8192 = 0.049 Hz, 0.9 %).
+const F16_PUBLISHED_HZ: [f64; 2] = [5.2, 7.3];
+const F16_TOL: f64 = 0.02;
+/// Quick check of SOURCE.md (not published; Level 1, acc1): |FRF| peaks.
+const F16_QUICK_HZ: [f64; 5] = [3.5, 5.2, 6.6, 7.3, 9.2];
+
+#[test]
+fn f16_gvt_level1_wing_bending_and_torsion() {
+    let test = "f16_gvt_level1_wing_bending_and_torsion";
+    if data_file("f16-level1", test).is_none() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let rec = import("f16-level1", dir.path());
+    let (report, v) = identify(&rec, &[], "auto");
+    // acceleration data: no chain fit, and the pipeline says why
+    assert!(v["model"].is_null(), "{}", v["model"]);
+    assert!(
+        v["notes"].to_string().contains("acceleration"),
+        "{}",
+        v["notes"]
+    );
+    let peaks = floats(&v["resonance_peaks_hz"]);
+    for want in F16_PUBLISHED_HZ {
+        let f = nearest(&peaks, want);
+        assert!(
+            f.is_some_and(|f| rel(f, want) < F16_TOL),
+            "F-16: no resonance within {} % of {want} Hz in {peaks:?}; report:\n{report}",
+            100.0 * F16_TOL
+        );
+    }
+    // the quick check's peaks (not published) within 3 %
+    for want in F16_QUICK_HZ {
+        assert!(
+            nearest(&peaks, want).is_some_and(|f| rel(f, want) < 0.03),
+            "F-16 quick check {want} Hz not in {peaks:?}"
+        );
+    }
+    let f = |w: f64| nearest(&peaks, w).unwrap();
+    row(
+        "F-16 GVT Level 1 (acc1)",
+        "wing bending [Hz]",
+        "~5.2 (published)",
+        format!("{:.3}", f(5.2)),
+        "+-2 %",
+    );
+    row(
+        "F-16 GVT Level 1 (acc1)",
+        "wing torsion [Hz]",
+        "~7.3 (published)",
+        format!("{:.3}", f(7.3)),
+        "+-2 %",
+    );
+    row(
+        "F-16 GVT Level 1 (acc1)",
+        "all significant peaks [Hz]",
+        "3.5, 5.2, 6.6, 7.3, 9.2 (quick check)",
+        hz(&peaks),
+        "+-3 %",
+    );
+    bode(&rec, "bode");
+}
+
+/// The wing torsion mode is the most nonlinear one (published): at the highest level it is
+/// still found, and it moves (printed, not asserted beyond +-5 %).
+#[test]
+fn f16_gvt_level7_torsion_mode_is_still_found() {
+    let test = "f16_gvt_level7_torsion_mode_is_still_found";
+    if data_file("f16-level7", test).is_none() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let rec = import("f16-level7", dir.path());
+    let (report, v) = identify(&rec, &[], "auto");
+    let peaks = floats(&v["resonance_peaks_hz"]);
+    let f = nearest(&peaks, 7.3);
+    assert!(
+        f.is_some_and(|f| rel(f, 7.3) < 0.05),
+        "F-16 level 7: peaks {peaks:?}; report:\n{report}"
+    );
+    row(
+        "F-16 GVT Level 7 (97.8 N RMS)",
+        "wing torsion [Hz]",
+        "~7.3 at low level, most nonlinear mode (published)",
+        format!("{:.3} (all peaks: {})", f.unwrap(), hz(&peaks)),
+        "+-5 %",
+    );
+}
+
+// ---------------------------------------------------------------------------------------
+// 3. DaISy flexible robot arm: reaction torque -> arm acceleration, fs unknown.
+// ---------------------------------------------------------------------------------------
+
+/// What is compared to what: DaISy gives no sampling time; the preset assumes fs = 100 Hz
+/// (as ControlSystemIdentification.jl does), so frequencies are compared in cycles/sample
+/// (f / fs). Published (ControlSystemIdentification.jl, SLICOT demo): "a model of order 4 is
+/// reasonable, a double-mass model" — four states hold at most two lightly damped modes; the
+/// data shows two significant peaks, whose positions are compared with the quick check of
+/// SOURCE.md (NOT published: maxima of a 1024-point DFT
+/// near 0.060 and 0.126 cycles/sample). The record is not periodic at any integer period,
+/// so it is estimated with Welch (256-sample segments, 0.0039 cycles/sample per line):
+/// tolerance +-0.006 cycles/sample, i.e. +-1.5 lines.
+#[test]
+fn daisy_robot_arm_double_mass() {
+    let test = "daisy_robot_arm_double_mass";
+    if data_file("daisy-robot-arm", test).is_none() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let rec = import("daisy-robot-arm", dir.path());
+    let (report, v) = identify(&rec, &[], "auto");
+    let fs = v["frf"]["sample_rate_hz"].as_f64().unwrap();
+    let peaks: Vec<f64> = floats(&v["resonance_peaks_hz"])
+        .iter()
+        .map(|f| f / fs)
+        .collect();
+    let mut found = Vec::new();
+    for want in [0.060, 0.126] {
+        let f = nearest(&peaks, want);
+        assert!(
+            f.is_some_and(|f| (f - want).abs() < 0.006),
+            "robot arm: no peak near {want} cycles/sample in {peaks:?}; report:\n{report}"
+        );
+        found.push(f.unwrap());
+    }
+    row(
+        "DaISy robot arm (fs 100 Hz assumed)",
+        "resonances [cycles/sample]",
+        "order 4 = double mass (published); maxima ~0.060, 0.126 (quick check)",
+        format!(
+            "{:.4}, {:.4} ({} significant peaks; {:.2} / {:.2} Hz at the assumed fs)",
+            found[0],
+            found[1],
+            peaks.len(),
+            found[0] * fs,
+            found[1] * fs
+        ),
+        "+-0.006",
+    );
+    bode(&rec, "bode");
+}
+
+// ---------------------------------------------------------------------------------------
+// 4. EMPS: closed loop, bang-bang trajectories, rigid body + friction (negative case).
+// ---------------------------------------------------------------------------------------
+
+/// Published: a rigid-body model (M = 95.1 kg, friction) describes the drive; the
+/// flexibility the validation pulses excited is not in the estimation record. Asserted: the
+/// pipeline runs and reports no compliant pair below 20 Hz (the position-loop bandwidth).
+#[test]
+fn emps_runs_and_finds_no_low_compliance() {
+    let test = "emps_runs_and_finds_no_low_compliance";
+    if data_file("emps", test).is_none() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let rec = import("emps", dir.path());
+    let (report, v) = identify(&rec, &[], "auto");
+    let pairs = v["pairs"].as_array().unwrap();
+    for p in pairs {
+        let (ar, r) = (p["ar_hz"].as_f64().unwrap(), p["r_hz"].as_f64().unwrap());
+        assert!(
+            ar > 20.0 && r > 20.0,
+            "EMPS: compliant pair below 20 Hz: {p}; report:\n{report}"
+        );
+    }
+    let j = v["total_inertia"]["j_kgm2"].as_f64().unwrap_or(f64::NAN);
+    let pairs_hz: Vec<String> = pairs
+        .iter()
+        .map(|p| {
+            let f = |k: &str| p[k].as_f64().unwrap_or(f64::NAN);
+            let edge = if p["r_above_band"].as_bool() == Some(true) {
+                " (R above the band)"
+            } else {
+                ""
+            };
+            format!("{:.0}/{:.0}{edge}", f("ar_hz"), f("r_hz"))
+        })
+        .collect();
+    row(
+        "EMPS (closed loop)",
+        "compliant pairs below 20 Hz / mass",
+        "none (rigid body); M = 95.1 kg",
+        format!(
+            "none (pairs AR/R: {}); J = {j:.3} [vir units] (x gtau 35.15 N/V = {:.1} kg)",
+            if pairs_hz.is_empty() {
+                "-".into()
+            } else {
+                pairs_hz.join(", ")
+            },
+            j * 35.15
+        ),
+        "-",
+    );
+}

@@ -12,8 +12,9 @@
 //!   ([`chain_from_spectra`]) with damping ratios of 1-5 % per coupling;
 //! * fs = 2000 or 4000 Hz; a Schroeder multisine with line spacing <= AR1/10 and <= zeta_k AR_k
 //!   (about two lines in the half-power width of every peak and dip), band up to
-//!   2.5 x the highest resonance (< 0.4 fs), amplitude rising as f^1, 1 transient + 6..10
-//!   periods, peak torque scaled with the inertia;
+//!   2.5 x the highest resonance (< 0.4 fs), amplitude shaped for a level velocity response
+//!   (1/|H| of the chain with its resonances smoothed, as from a first sweep),
+//!   1 transient + 6..10 periods, peak torque scaled with the inertia;
 //! * 1-3 % velocity noise, a 2^16 .. 2^20 count encoder, a random drift (initial velocity).
 //!
 //! The full [`analyze`] runs on each recording, with the automatic model order (what users
@@ -139,7 +140,19 @@ fn simulate(case: &Case) -> flexid::recording::Recording {
     let peak = 80.0 * j;
     let mut d = MultisineDesign::new(case.fs, case.period, [df, case.band_hi], peak, peak / 2.0);
     d.crest_iterations = 30;
-    d.amplitude = AmplitudeShape::PowerLaw { exponent: 1.0 };
+    // Level velocity response over the band, as a technician shapes the second sweep from a
+    // first one: amplitude ~ 1/|H| of the chain with its resonances smoothed away (heavy
+    // coupling damping turns every AR/R pair into the step of the effective inertia). A
+    // plain f^1 slope starves the low lines whenever the motor is much lighter than the
+    // load: the velocity above the resonances then dominates the RMS, and so the noise.
+    let smooth = with_coupling_damping(case.chain.clone(), 0.5);
+    let lines =
+        flexid::excitation::band_lines(case.fs, case.period, [df, case.band_hi]).expect("lines");
+    let amps: Vec<f64> = lines
+        .iter()
+        .map(|&k| 1.0 / smooth.mobility(k as f64 * df).norm())
+        .collect();
+    d.amplitude = AmplitudeShape::Custom(amps);
     let ms = d.generate().expect("multisine");
     let torque = ms.repeat(case.periods + 1);
     let sidecar = Sidecar {

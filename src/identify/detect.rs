@@ -209,6 +209,51 @@ struct Candidate {
     sigma: f64,
 }
 
+/// In a chain's motor mobility anti-resonances and resonances interlace: every resonance has
+/// an anti-resonance below it. A significant peak whose preceding candidate is not a notch
+/// (or that has none) takes the most prominent weaker notch between the previous candidate
+/// and itself, if one is at least `min_depth_db` deep and 3 sigma; the pairing step still
+/// demands the phase rise, so this cannot make a pair out of noise alone.
+fn promote_interlacing_notches(
+    cands: &mut Vec<Candidate>,
+    weak: &[Candidate],
+    det: &mut Detection,
+    f: &[f64],
+) {
+    let mut promoted = Vec::new();
+    for (k, c) in cands.iter().enumerate() {
+        if c.kind != ExtremumKind::Peak {
+            continue;
+        }
+        let prev = k.checked_sub(1).map(|j| cands[j]);
+        if prev.is_some_and(|p| p.kind == ExtremumKind::Notch) {
+            continue;
+        }
+        let lo = prev.map_or(0, |p| p.i);
+        if let Some(best) = weak
+            .iter()
+            .filter(|w| w.i > lo && w.i < c.i)
+            .max_by(|a, b| (a.prom / a.sigma).total_cmp(&(b.prom / b.sigma)))
+        {
+            promoted.push(*best);
+        }
+    }
+    for p in &promoted {
+        det.rejected
+            .retain(|r| !(r.kind == ExtremumKind::Notch && r.freq_hz == f[p.i]));
+        det.notes.push(format!(
+            "notch at {:.4} Hz ({:.1} dB, {:.1} sigma) taken as the anti-resonance of the \
+             resonance above it although below the sigma threshold: anti-resonances and \
+             resonances interlace",
+            f[p.i],
+            p.prom * DB,
+            p.prom / p.sigma
+        ));
+    }
+    cands.extend(promoted);
+    cands.sort_by_key(|c| c.i);
+}
+
 /// Detect AR/R pairs on `frf` (differenced-velocity or position FRF).
 pub fn detect_pairs(frf: &Frf, opts: &DetectOptions) -> Result<Detection, IdentifyError> {
     let nr = normalized_response(frf, opts.band_hz, opts.delay_samples)?;
@@ -233,6 +278,8 @@ pub fn detect_pairs(frf: &Frf, opts: &DetectOptions) -> Result<Detection, Identi
     };
     // 1. candidates
     let mut cands = Vec::new();
+    // notches deep enough in dB but short of the sigma threshold, kept for the interlacing rule
+    let mut weak_notches: Vec<Candidate> = Vec::new();
     for kind in [ExtremumKind::Notch, ExtremumKind::Peak] {
         let sign = if kind == ExtremumKind::Peak {
             1.0
@@ -242,17 +289,19 @@ pub fn detect_pairs(frf: &Frf, opts: &DetectOptions) -> Result<Detection, Identi
         let v: Vec<f64> = y.iter().map(|x| sign * x).collect();
         let k = opts.min_sigma.max(1.0);
         for (i, prom, iref) in prominences(&v) {
-            // At a deep notch the line's own relative scatter is large (the motor barely
-            // moves there), and ln|H| +- sigma is no longer symmetric: what matters is that
-            // the notch's upper confidence bound |H|(1 + k s) stays below the shoulder.
-            // `ln(1 + k s)/k` is that bound per sigma; ~ s for small s, so peaks and clean
-            // notches are judged as before.
-            let s_line = if kind == ExtremumKind::Notch {
-                (1.0 + k * s[i]).ln() / k
+            // Near a notch the relative scatter of |H| is large (the motor barely moves
+            // there) and ln|H| +- sigma is no longer symmetric. Of the two points compared,
+            // the lower one (the notch line itself, or a peak's reference line, which is
+            // often the bottom of the preceding notch) is judged by its upper confidence
+            // bound |H|(1 + k s): `ln(1 + k s)/k` per sigma, ~ s for small s. The higher
+            // point keeps its plain sigma.
+            let ucb = |s: f64| (1.0 + k * s).ln() / k;
+            let (s_line, s_ref) = if kind == ExtremumKind::Notch {
+                (ucb(s[i]), s[iref])
             } else {
-                s[i]
+                (s[i], ucb(s[iref]))
             };
-            let sigma = (s_line * s_line + s[iref] * s[iref]).sqrt();
+            let sigma = (s_line * s_line + s_ref * s_ref).sqrt();
             let c = Candidate {
                 i,
                 kind,
@@ -263,6 +312,9 @@ pub fn detect_pairs(frf: &Frf, opts: &DetectOptions) -> Result<Detection, Identi
             if db >= opts.min_depth_db && prom >= opts.min_sigma * sigma {
                 cands.push(c);
             } else if db >= 1.0 && prom >= 3.0 * sigma {
+                if kind == ExtremumKind::Notch && db >= opts.min_depth_db {
+                    weak_notches.push(c);
+                }
                 det.rejected.push(reject(
                     f,
                     &c,
@@ -278,6 +330,7 @@ pub fn detect_pairs(frf: &Frf, opts: &DetectOptions) -> Result<Detection, Identi
         }
     }
     cands.sort_by_key(|c| c.i);
+    promote_interlacing_notches(&mut cands, &weak_notches, &mut det, f);
 
     // 2. pairing in physical order
     let min_rise = opts.min_phase_rise_deg.to_radians();

@@ -239,6 +239,40 @@ pub fn select_order(
     })
 }
 
+/// The starts [`fit_chain`] runs for `init` and `opts`, as log-parameter vectors
+/// `ln(J1..Jn, c1..c(n-1), d1..d(n-1))` (the first is `init` itself, dampings floored as in
+/// the fit): for comparing other solvers on exactly the same problem.
+pub fn start_parameters(init: &Chain, opts: &FitOptions) -> Result<Vec<Vec<f64>>, IdentifyError> {
+    init.validate()?;
+    let theta0 = theta_of(init);
+    Ok(make_starts(&theta0, init.masses(), opts)
+        .into_iter()
+        .map(|t| t.as_slice().to_vec())
+        .collect())
+}
+
+/// The weighted residual vector [`fit_chain`] minimises, at `chain`: per usable line `i`
+/// (in `frf` order, inside `opts.band_hz`), `w_i Re ln(H_model/H_meas)` then
+/// `w_i Im ln(H_model/H_meas)` (principal branch), `w_i = 1/sigma_i`. Its squared norm is
+/// the fit's `cost`. For comparing other solvers on exactly the same problem.
+pub fn weighted_residuals(
+    frf: &Frf,
+    chain: &Chain,
+    opts: &FitOptions,
+) -> Result<Vec<f64>, IdentifyError> {
+    chain.validate()?;
+    let data = prepare(frf, chain.masses(), opts)?;
+    let problem = ChainProblem::new(&data, theta_of(chain));
+    problem
+        .residuals()
+        .map(|r| r.as_slice().to_vec())
+        .ok_or_else(|| IdentifyError::FitFailed {
+            masses: chain.masses(),
+            starts: 0,
+            reason: "residuals not finite at the given chain".into(),
+        })
+}
+
 /// Log-parameters of a chain; zero dampings are floored at a damping ratio of about 1e-4 so
 /// that their logarithm exists.
 fn theta_of(chain: &Chain) -> DVector<f64> {

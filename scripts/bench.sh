@@ -1,0 +1,67 @@
+#!/usr/bin/env bash
+# The comparison benchmark: flexid against scipy/numpy on the same data, one core each.
+#
+#   scripts/bench.sh           full run (more repetitions)
+#   scripts/bench.sh --quick   short run (CI, after the tests)
+#
+# 1. creates/reuses .venv (gitignored) with pinned numpy and scipy (idempotent);
+# 2. builds and runs the Rust side (benches/compare.rs): simulates the data, writes it to
+#    target/bench/data, times flexid on it and writes its results there;
+# 3. runs the Python side (benches/compare.py) on the same files: times scipy/numpy, checks
+#    that both sides computed the same numbers, prints the table and writes
+#    target/bench/compare.md.
+# Both processes are pinned to the same core, BLAS/OpenMP to one thread. Ratios are
+# reported, not asserted; the script fails when the two sides' numbers disagree.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+root=$(pwd)
+
+NUMPY_VERSION=2.4.6
+SCIPY_VERSION=1.17.1
+
+mode=()
+for a in "$@"; do
+    case "$a" in
+    --quick) mode=(--quick) ;;
+    *) echo "usage: scripts/bench.sh [--quick]" >&2; exit 2 ;;
+    esac
+done
+
+venv="$root/.venv"
+python="${PYTHON:-python3}"
+if [ -x "$venv/bin/python" ] &&
+    "$venv/bin/python" - "$NUMPY_VERSION" "$SCIPY_VERSION" <<'PY' 2>/dev/null; then
+import sys
+import numpy, scipy
+sys.exit(0 if (numpy.__version__, scipy.__version__) == tuple(sys.argv[1:3]) else 1)
+PY
+    echo "bench: $venv up to date (numpy $NUMPY_VERSION, scipy $SCIPY_VERSION)"
+else
+    "$python" -m venv "$venv"
+    "$venv/bin/python" -m pip install --quiet --disable-pip-version-check \
+        "numpy==$NUMPY_VERSION" "scipy==$SCIPY_VERSION"
+    echo "bench: installed numpy $NUMPY_VERSION, scipy $SCIPY_VERSION into $venv"
+fi
+
+# The release build of the bench target (scripts/test.sh has built it already).
+exe=$(cargo build --release --bench compare --message-format=json 2>/dev/null |
+    sed -n 's/.*"executable":"\([^"]*compare[^"]*\)".*/\1/p' | tail -n 1)
+if [ -z "$exe" ] || [ ! -x "$exe" ]; then
+    cargo build --release --bench compare # shows the error
+    echo "bench: could not find the compare executable" >&2
+    exit 1
+fi
+
+# One core for both sides: the last one (core 0 takes most interrupts).
+pin=()
+if command -v taskset >/dev/null; then
+    core=$(($(nproc) - 1))
+    pin=(taskset -c "$core")
+fi
+export OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 MKL_NUM_THREADS=1 \
+    VECLIB_MAXIMUM_THREADS=1 NUMEXPR_NUM_THREADS=1
+
+data="$root/target/bench/data"
+rm -rf "$data"
+"${pin[@]}" "$exe" "${mode[@]}" --out "$data"
+"${pin[@]}" "$venv/bin/python" benches/compare.py "$data" --report "$root/target/bench/compare.md"

@@ -204,8 +204,13 @@ mount -t tmpfs tmp /host/tmp
 [ -d /host/run ] && mount -t tmpfs run /host/run
 chmod 1777 /host/tmp /host/dev/shm
 echo "VCAN-VM-BEGIN $VCAN_VM_NONCE"
-chroot /host /bin/sh -c 'cd "$0" && exec "$@"' "$VCAN_VM_CWD" "$@"
-rc=$?
+# Through a pipe, not the console tty: what the command prints is read by the host (no
+# colours, no tty handling); stderr joins stdout in order.
+{
+    chroot /host /bin/sh -c 'cd "$0" && exec "$@"' "$VCAN_VM_CWD" "$@"
+    echo $? >/rc
+} 2>&1 </dev/null | cat
+rc=$(cat /rc 2>/dev/null || echo 126)
 sync
 echo "VCAN-VM-EXIT=$rc $VCAN_VM_NONCE"
 poweroff -f

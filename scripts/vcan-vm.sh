@@ -30,9 +30,11 @@
 # knows), VCAN_VM_TIMEOUT (seconds for the whole VM, default 1200), VCAN_VM_MEM (MiB,
 # default 1024), VCAN_VM_SMP (vCPUs, default 2), VCAN_VM_VERBOSE=1 (show the boot log).
 #
-# Guest side: busybox init script (below, `guest_init`) loads virtio/9p/CAN modules,
-# creates vcan0, mounts host / at /host (9p, read-only), mounts proc, sysfs, devtmpfs and
-# tmpfs (/tmp, /run, /dev/shm) inside it, chroots, cds and runs the command, prints
+# Guest side: busybox init script (below, `guest_init`) loads virtio/9p/overlay/CAN
+# modules, creates vcan0, mounts host / (9p, read-only) under a RAM overlay at /host (the
+# command may write, e.g. cargo's lock file; nothing reaches the host), mounts proc,
+# sysfs, devtmpfs and tmpfs (/tmp, /run, /dev/shm) inside it, chroots, cds and runs the
+# command (stdin /dev/null, stdout and stderr through a pipe: no tty), prints
 # `VCAN-VM-EXIT=<code> <nonce>` and powers off. The command and environment reach the guest as a
 # small extra cpio archive appended to the initramfs (no kernel command line limits).
 set -euo pipefail
@@ -47,7 +49,7 @@ smp=${VCAN_VM_SMP:-2}
 # Modules, in insmod order (dependencies first). `setup` also adds anything their
 # .modinfo says they depend on, so a kernel with a different split still loads.
 MODULES=(virtio_ring virtio virtio_pci_legacy_dev virtio_pci_modern_dev virtio_pci
-    netfs fscache 9pnet 9pnet_virtio 9p can can-raw can-dev vcan)
+    netfs fscache 9pnet 9pnet_virtio 9p overlay can can-raw can-dev vcan)
 PACKAGES=(qemu-system-x86 busybox-static cpio xz-utils)
 
 log() { printf 'vcan-vm: %s\n' "$*" >&2; }
@@ -192,8 +194,14 @@ done
 ip link set lo up
 ip link add dev vcan0 type vcan || fail "ip link add vcan0"
 ip link set up vcan0 || fail "ip link set up vcan0"
-mount -t 9p -o trans=virtio,version=9p2000.L,msize=512000,cache=loose,ro hostroot /host ||
+mkdir -p /hostro /rw
+mount -t 9p -o trans=virtio,version=9p2000.L,msize=512000,cache=loose,ro hostroot /hostro ||
     fail "mount host root over 9p"
+# A throwaway writable layer (RAM) over the read-only host root, so that commands which
+# write beside their files (cargo's lock file in target/) work; nothing reaches the host.
+mount -t tmpfs rw /rw && mkdir -p /rw/upper /rw/work &&
+    mount -t overlay overlay -o lowerdir=/hostro,upperdir=/rw/upper,workdir=/rw/work /host ||
+    { echo "vcan-vm guest: no overlay, host root read-only"; mount --bind /hostro /host; }
 mount -t proc proc /host/proc
 mount -t sysfs sys /host/sys
 mount -t devtmpfs dev /host/dev

@@ -233,7 +233,37 @@ pub fn analyze(rec: &Recording, opts: &AnalysisOptions) -> Result<Analysis, Anal
     let fit = match opts.masses {
         Some(m) => {
             let k = m - 1;
-            let init = if k <= spectra.len() {
+            let init = if k < spectra.len() {
+                // Fewer bodies than detected pairs: which pairs the best reduced chain keeps
+                // is not known beforehand (the most prominent pair need not be the one that
+                // explains most of the band), so every choice of k pairs is fitted (at most
+                // a few dozen) and the lowest cost wins.
+                let choices = combinations(spectra.len(), k, 32);
+                let mut best: Option<ChainFit> = None;
+                let mut last_err = None;
+                for keep in choices {
+                    let sel: Vec<(f64, f64)> = keep.iter().map(|&i| spectra[i]).collect();
+                    let Some(init) = exact_for(&sel) else {
+                        continue;
+                    };
+                    match fit_chain(&analysis.measured.frf, &init, &fit_opts) {
+                        Ok(f) if best.as_ref().is_none_or(|b| f.cost < b.cost) => best = Some(f),
+                        Ok(_) => {}
+                        Err(e) => last_err = Some(e),
+                    }
+                }
+                match (best, last_err) {
+                    (Some(f), _) => {
+                        analysis.notes.push(format!(
+                            "{m} bodies asked for, {} pairs detected: every choice of {k} pairs was fitted and the best kept",
+                            spectra.len()
+                        ));
+                        return finish(analysis, f, fs, delay);
+                    }
+                    (None, Some(e)) => return Err(e.into()),
+                    (None, None) => None,
+                }
+            } else if k == spectra.len() {
                 chain_with(k)
             } else {
                 analysis.notes.push(format!(
@@ -269,6 +299,16 @@ pub fn analyze(rec: &Recording, opts: &AnalysisOptions) -> Result<Analysis, Anal
             sel.fit
         }
     };
+    finish(analysis, fit, fs, delay)
+}
+
+/// The identified model's response on the measured lines and the summary, into `analysis`.
+fn finish(
+    mut analysis: Analysis,
+    fit: ChainFit,
+    fs: f64,
+    delay: u32,
+) -> Result<Analysis, AnalysisError> {
     let sc = SampledChain::new(&fit.chain, fs, delay)?;
     let mut model_frf = analysis.measured.frf.clone();
     for (i, f) in model_frf.freq_hz.iter().enumerate() {
@@ -324,4 +364,27 @@ fn total_inertia(
         source: "low_frequency_gain",
         estimate: Some(e),
     })
+}
+
+/// The first `limit` of the `k`-element subsets of `0..n`, in lexicographic order.
+fn combinations(n: usize, k: usize, limit: usize) -> Vec<Vec<usize>> {
+    let mut out = Vec::new();
+    if k == 0 || k > n {
+        return out;
+    }
+    let mut idx: Vec<usize> = (0..k).collect();
+    loop {
+        out.push(idx.clone());
+        if out.len() >= limit {
+            return out;
+        }
+        // the rightmost index that can still move right
+        let Some(i) = (0..k).rev().find(|&i| idx[i] < n - k + i) else {
+            return out;
+        };
+        idx[i] += 1;
+        for j in i + 1..k {
+            idx[j] = idx[j - 1] + 1;
+        }
+    }
 }

@@ -117,34 +117,35 @@ pub fn fit_chain(frf: &Frf, init: &Chain, opts: &FitOptions) -> Result<ChainFit,
     let theta0 = theta_of(init);
     let starts = make_starts(&theta0, init.masses(), opts);
     let results = run_starts(&data, &starts, opts);
-    let mut best: Option<(f64, DVector<f64>, usize)> = None;
+    let mut ok: Vec<(f64, &DVector<f64>, usize)> = Vec::with_capacity(results.len());
     let mut last_err = String::from("no start");
     for r in &results {
         match r {
-            Ok((cost, theta, evals)) => {
-                if best.as_ref().is_none_or(|b| *cost < b.0) {
-                    best = Some((*cost, theta.clone(), *evals));
-                }
-            }
+            Ok((cost, theta, evals)) => ok.push((*cost, theta, *evals)),
             Err(e) => last_err.clone_from(e),
         }
     }
-    let Some((cost, theta, evals)) = best else {
-        return Err(IdentifyError::FitFailed {
-            masses: init.masses(),
-            starts: starts.len(),
-            reason: last_err,
-        });
-    };
-    let tol = cost * 1e-6 + 1e-9;
-    let converged = results
-        .iter()
-        .filter(|r| matches!(r, Ok((c, _, _)) if *c <= cost + tol))
-        .count();
+    ok.sort_by(|a, b| a.0.total_cmp(&b.0));
     let total = results.iter().map(|r| r.as_ref().map_or(0, |x| x.2)).sum();
-    let mut fit = summarize(&data, theta, cost, evals, starts.len(), converged)?;
-    fit.evaluations_total = total;
-    Ok(fit)
+    // The best start whose optimum can be summarised: a start that ran off to a degenerate
+    // chain (a pole pair merging into a double pole, a parameter overflowing) has no finite
+    // Jacobian there and is passed over for the next best.
+    for &(cost, theta, evals) in &ok {
+        let tol = cost * 1e-6 + 1e-9;
+        let converged = ok.iter().filter(|r| r.0 <= cost + tol).count();
+        match summarize(&data, theta.clone(), cost, evals, starts.len(), converged) {
+            Ok(mut fit) => {
+                fit.evaluations_total = total;
+                return Ok(fit);
+            }
+            Err(e) => last_err = e.to_string(),
+        }
+    }
+    Err(IdentifyError::FitFailed {
+        masses: init.masses(),
+        starts: starts.len(),
+        reason: last_err,
+    })
 }
 
 /// One candidate order of [`select_order`].
@@ -405,6 +406,27 @@ fn prepare(frf: &Frf, masses: usize, opts: &FitOptions) -> Result<FitData, Ident
     Ok(data)
 }
 
+/// The residuals' Jacobian by central differences in the log-parameters: the fallback at an
+/// optimum where the analytic one overflows (a chain that ran off to a degenerate limit,
+/// e.g. a spring tending to zero with a pole at the origin, where the residue derivatives
+/// blow up although the response itself stays finite).
+fn central_difference_jacobian(data: &FitData, theta: &DVector<f64>) -> Option<DMatrix<f64>> {
+    let np = data.params();
+    let mut cols = Vec::with_capacity(np);
+    for j in 0..np {
+        let h = 1e-6 * (1.0 + theta[j].abs());
+        let mut tp = theta.clone();
+        tp[j] += h;
+        let mut tm = theta.clone();
+        tm[j] -= h;
+        let rp = ChainProblem::new(data, tp).residuals()?;
+        let rm = ChainProblem::new(data, tm).residuals()?;
+        cols.push((rp - rm) / (2.0 * h));
+    }
+    let jac = DMatrix::from_columns(&cols);
+    jac.iter().all(|v| v.is_finite()).then_some(jac)
+}
+
 fn summarize(
     data: &FitData,
     theta: DVector<f64>,
@@ -417,11 +439,14 @@ fn summarize(
     let np = data.params();
     let lines = data.z.len();
     let problem = ChainProblem::new(data, theta.clone());
-    let jac = problem.jacobian().ok_or_else(|| IdentifyError::FitFailed {
-        masses: n,
-        starts,
-        reason: "Jacobian not finite at the optimum".into(),
-    })?;
+    let jac = problem
+        .jacobian()
+        .or_else(|| central_difference_jacobian(data, &theta))
+        .ok_or_else(|| IdentifyError::FitFailed {
+            masses: n,
+            starts,
+            reason: "Jacobian not finite at the optimum".into(),
+        })?;
     let dof = (2 * lines).saturating_sub(np);
     let chi2_per_dof = if dof > 0 { cost / dof as f64 } else { f64::NAN };
     let jtj = jac.transpose() * &jac;

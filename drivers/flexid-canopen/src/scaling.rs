@@ -171,7 +171,7 @@ mod tests {
     fn unwrap_counts_past_i32() {
         let mut u = PositionUnwrap::default();
         assert_eq!(u.update(i32::MAX - 10), (i32::MAX - 10) as i64);
-        assert_eq!(u.update(i32::MIN + 9), i32::MAX as i64 + 20);
-        assert_eq!(u.update(i32::MIN + 4), i32::MAX as i64 + 15);
+        assert_eq!(u.update(i32::MIN + 9), i32::MAX as i64 + 10);
+        assert_eq!(u.update(i32::MIN + 4), i32::MAX as i64 + 5);
     }
 }

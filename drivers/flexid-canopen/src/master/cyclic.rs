@@ -86,7 +86,8 @@ impl<B: CanBus> Link<B> {
             }
         }
         let (complete, consecutive) = self.exchange.end();
-        if consecutive >= self.cfg.max_missed_cycles {
+        // In walks the state timeout bounds the time; in the cycle, missing feedback.
+        if mode == Mode::Strict && consecutive >= self.cfg.max_missed_cycles {
             return Err(MasterError::TpdoLost { node, consecutive });
         }
         Ok((sync_time, complete))

@@ -388,8 +388,8 @@ pub fn max_cycle_rate_hz(
 /// The cycle would overload the bus.
 #[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
 #[error(
-    "bus load {:.1} % at {cycle_hz} Hz on {bitrate} bit/s exceeds {:.0} %: lower the cycle rate to at most {max_rate_hz:.0} Hz or raise the bitrate to at least {min_bitrate} bit/s{}",
-    load * 100.0, max_load * 100.0,
+    "bus load {:.1} % at {cycle_hz} Hz on {bitrate} bit/s exceeds {:.0} %: lower the cycle rate to at most {:.0} Hz or raise the bitrate to at least {min_bitrate} bit/s{}",
+    load * 100.0, max_load * 100.0, max_rate_hz.floor(),
     if *min_bitrate > 1_000_000 { " (above the 1 Mbit/s of classic CAN)" } else { "" }
 )]
 pub struct BusLoadError {

@@ -20,6 +20,8 @@
 //! NMT/EMCY/PDO types. CiA 402, the master, the profiles and the bus-load check are
 //! hand-written here (canopen-rs has no CiA 402).
 
+#![warn(missing_docs)]
+
 pub mod cia402;
 pub mod cob;
 pub mod drive;

@@ -34,7 +34,7 @@ pub const COB_ID_INVALID: u32 = 0x8000_0000;
 pub struct Pdo {
     /// Receive (master to drive) or transmit (drive to master).
     pub kind: PdoKind,
-    /// PDO number, 1..=4.
+    /// PDO number, 1..=4 (others are taken as the nearest).
     pub number: u8,
     entries: [MappingEntry; 8],
     len: u8,
@@ -93,12 +93,12 @@ impl Pdo {
 
     /// The communication parameter index (0x1400/0x1800 + number - 1).
     pub fn comm_index(&self) -> u16 {
-        comm_base(self.kind) + (self.number as u16 - 1)
+        comm_base(self.kind) + (self.number.clamp(1, 4) as u16 - 1)
     }
 
     /// The mapping parameter index (0x1600/0x1A00 + number - 1).
     pub fn mapping_index(&self) -> u16 {
-        mapping_base(self.kind) + (self.number as u16 - 1)
+        mapping_base(self.kind) + (self.number.clamp(1, 4) as u16 - 1)
     }
 }
 

@@ -266,6 +266,7 @@ fn enable_resets_a_fault_first() {
         start_in_fault: true,
         ..SimOptions::default()
     };
+    let log = opts.cw_log.clone();
     let (d, _rig) = configured("cyc-reset", opts);
     let mut d = d.enable().expect("enable through fault reset");
     assert_eq!(
@@ -276,4 +277,35 @@ fn enable_resets_a_fault_first() {
     // and enable again from Switch on disabled, NMT pre-operational
     let mut d = d.enable().expect("re-enable");
     assert!(d.cycle(0.0, soon()).unwrap().fresh);
+    let mut cws = log.lock().unwrap().clone();
+    cws.dedup();
+    // CiA 402 controlwords, by hand: Disable voltage (state not yet known), Fault
+    // reset, Shutdown, Switch on, Enable operation; Quick stop, Disable voltage;
+    // again Shutdown, Switch on, Enable operation.
+    assert_eq!(
+        cws,
+        vec![0x0000, 0x0080, 0x0006, 0x0007, 0x000F, 0x0002, 0x0000, 0x0006, 0x0007, 0x000F]
+    );
+}
+
+/// A sweep written against the CAN-free interface only.
+fn generic_sweep<D: CyclicDrive>(d: &mut D, n: usize) -> Result<f64, D::Error> {
+    let mut last = 0.0;
+    for k in 0..n {
+        let fb = d.cycle(
+            0.01 * (k as f64).sin(),
+            Instant::now() + Duration::from_millis(200),
+        )?;
+        last = fb.position_rad;
+    }
+    Ok(last)
+}
+
+#[test]
+fn drive_is_usable_through_the_can_free_trait() {
+    let (mut d, _rig) = enabled("cyc-trait", SimOptions::default());
+    let p = generic_sweep(&mut d, 50).unwrap();
+    assert!(p.is_finite());
+    assert_eq!(d.cycle_period(), Duration::from_millis(1));
+    assert_eq!(CyclicDrive::counters(&d).cycles, 50);
 }

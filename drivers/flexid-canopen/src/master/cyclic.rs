@@ -148,11 +148,12 @@ impl<B: CanBus> Link<B> {
         let period = self.cfg.cycle_period;
         let limit = self.cfg.state_timeout;
         let start = self.now();
-        let mut seen: Option<State> = None;
+        // The state of the last feedback (a fresh exchange shows statusword 0, Not ready
+        // to switch on: Disable voltage until the drive reports).
+        let mut seen = self.state();
         loop {
             let cw = match seen {
-                None if target == Target::OperationEnabled => Controlword::DISABLE_VOLTAGE,
-                None => Controlword::DISABLE_OPERATION,
+                None => Controlword::DISABLE_VOLTAGE,
                 Some(State::OperationEnabled) if quick_stop_first => Controlword::QUICK_STOP,
                 Some(s) => next_controlword(s, target),
             }

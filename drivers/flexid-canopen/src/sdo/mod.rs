@@ -335,6 +335,15 @@ impl<B: CanBus> Sdo<B> {
         upload: Option<DataType>,
     ) -> Result<Option<Value>, SdoError> {
         let node = self.node.raw();
+        // Whatever is queued predates this transfer (PDOs seen by this handle, stale
+        // responses to transfers that timed out): drop it.
+        for _ in 0..100_000 {
+            match self.bus.recv_timeout(Duration::ZERO) {
+                Ok(Some(_)) => self.stats.skipped += 1,
+                Err(e) if e.is_report() => {}
+                Ok(None) | Err(_) => break,
+            }
+        }
         let mut request = first;
         let mut initiate = true;
         loop {

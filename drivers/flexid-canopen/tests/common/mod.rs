@@ -4,7 +4,7 @@
 
 use std::collections::{HashMap, HashSet};
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::Duration;
 
@@ -76,6 +76,8 @@ pub struct SimOptions {
     pub mode_display: Option<i8>,
     /// The drive starts in Fault (fault cleared, so a reset works).
     pub start_in_fault: bool,
+    /// Every controlword received in RPDO1, in order.
+    pub cw_log: Arc<Mutex<Vec<u16>>>,
 }
 
 /// Sim parameters: 2^20 increments/rev, rated torque 1 N m, inertia J.
@@ -194,6 +196,7 @@ pub fn sim_drive(
                 }
             } else if id == 0x200 + node as u16 && d.len() == 4 && operational {
                 cw = Controlword(u16::from_le_bytes([d[0], d[1]]));
+                opts.cw_log.lock().unwrap().push(cw.0);
                 torque = i16::from_le_bytes([d[2], d[3]]);
             } else if id == 0x080 && d.is_empty() && operational {
                 let n = sync_n;

@@ -309,3 +309,18 @@ fn drive_is_usable_through_the_can_free_trait() {
     assert_eq!(d.cycle_period(), Duration::from_millis(1));
     assert_eq!(CyclicDrive::counters(&d).cycles, 50);
 }
+
+#[test]
+fn unknown_drive_gets_the_generic_profile_with_units_read_from_it() {
+    let opts = SimOptions {
+        vendor: Some(0x0000_1234),
+        ..SimOptions::default()
+    };
+    let (d, _rig) = configured("cyc-generic", opts);
+    assert_eq!(d.profile().name, "generic-cia402");
+    assert_eq!(d.scaling().increments_per_rev, 10_000.0);
+    assert_eq!(d.scaling().rated_torque_nm, 2.5);
+    let mut d = d.enable().unwrap();
+    let fb = d.cycle(0.25, soon()).unwrap(); // 100 per-mille of 2.5 N m
+    assert!((fb.torque_nm - 0.25).abs() < 1e-12);
+}

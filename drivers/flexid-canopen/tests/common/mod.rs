@@ -76,6 +76,9 @@ pub struct SimOptions {
     pub mode_display: Option<i8>,
     /// The drive starts in Fault (fault cleared, so a reset works).
     pub start_in_fault: bool,
+    /// Vendor-id in 0x1018:1 (None: flexid-vdrive's); the sim also has 0x608F = 10000
+    /// increments / 1 revolution and 0x6076 = 2500 mN m for the generic profile.
+    pub vendor: Option<u32>,
     /// Every controlword received in RPDO1, in order.
     pub cw_log: Arc<Mutex<Vec<u16>>>,
 }
@@ -97,7 +100,10 @@ pub fn sim_drive(
     std::thread::spawn(move || {
         let mut od: HashMap<(u16, u8), (u8, u32)> = HashMap::new(); // (size, value)
         od.insert((0x1000, 0), (4, 0x0002_0192));
-        od.insert((0x1018, 1), (4, 0x0000_0F1D));
+        od.insert((0x1018, 1), (4, opts.vendor.unwrap_or(0x0000_0F1D)));
+        od.insert((0x608F, 1), (4, 10_000));
+        od.insert((0x608F, 2), (4, 1));
+        od.insert((0x6076, 0), (4, 2500));
         od.insert((0x1018, 2), (4, 0x0000_0402));
         od.insert((0x1018, 3), (4, 0x0001_0000));
         od.insert((0x1018, 4), (4, 42));

@@ -65,7 +65,12 @@ impl<B: CanBus> Drive<B, PreOperational> {
         let sdo = Sdo::new(sdo_bus, node, config.sdo_timeout, config.clock)?;
         // Anything queued before the reset is not this boot's.
         while let Ok(Some(_)) = bus.recv_timeout(Duration::ZERO) {}
-        let fallback = profiles.select(&Identity::default())?.clone();
+        // Placeholder until the identity is read (any profile; the generic one if loaded).
+        let fallback = profiles
+            .get(crate::profile::GENERIC)
+            .or(profiles.profiles().first())
+            .ok_or(crate::profile::ProfileError::NoFallback)?
+            .clone();
         let mut link = Link {
             bus,
             sdo,

@@ -324,3 +324,53 @@ fn unknown_drive_gets_the_generic_profile_with_units_read_from_it() {
     let fb = d.cycle(0.25, soon()).unwrap(); // 100 per-mille of 2.5 N m
     assert!((fb.torque_nm - 0.25).abs() < 1e-12);
 }
+
+#[test]
+fn cycle_frames_and_master_heartbeat_on_the_wire() {
+    use flexid_can::CanBus;
+    let bus = InprocBus::new("cyc-wire");
+    let mut spy = bus.handle();
+    let stop = Arc::new(AtomicBool::new(false));
+    let sim = sim_drive(
+        bus.handle(),
+        NODE,
+        0.001,
+        SimOptions::default(),
+        stop.clone(),
+    );
+    let _rig = Rig {
+        stop,
+        sim: Some(sim),
+    };
+    let cfg = MasterConfig {
+        heartbeat_period: Duration::from_millis(20),
+        ..MasterConfig::for_node(NODE)
+    };
+    let mut d = bring_up(bus, cfg, &ProfileSet::builtin())
+        .unwrap()
+        .enable()
+        .unwrap();
+    // forget the bring-up and enable traffic
+    while let Ok(Some(_)) | Err(_) = spy.recv_timeout(Duration::ZERO).map(|r| r.map(|_| ())) {}
+    let t0 = Instant::now();
+    let mut k = 0u32;
+    while t0.elapsed() < Duration::from_millis(70) {
+        d.cycle(0.1, soon()).unwrap();
+        k += 1;
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    let mut frames = Vec::new();
+    while let Ok(Some(r)) = spy.recv_timeout(Duration::ZERO) {
+        frames.push((r.frame.id().raw(), r.frame.data().to_vec()));
+    }
+    // master heartbeat 0x700 + 0x7F, Operational (0x05): about every 20 ms
+    let hb = frames.iter().filter(|f| *f == &(0x77F, vec![0x05])).count();
+    assert!((3..=5).contains(&hb), "{hb} heartbeats in 70 ms");
+    // every cycle: RPDO1 0x203 [0x0F 0x00, 100 per-mille = 0x64 0x00], then SYNC
+    let rpdo = (0x203u32, vec![0x0F, 0x00, 0x64, 0x00]);
+    let n = frames
+        .windows(2)
+        .filter(|w| w[0] == rpdo && w[1] == (0x080, vec![]))
+        .count();
+    assert_eq!(n as u32, k);
+}

@@ -1,0 +1,75 @@
+//! The CAN-free drive interface: what a sweep needs from a drive in cyclic synchronous
+//! torque mode, whatever the fieldbus (CANopen here; EtherCAT CoE can implement it too).
+
+use std::time::{Duration, Instant};
+
+use crate::cia402::State;
+
+/// One cycle's feedback, in SI units.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Feedback {
+    /// Cycle number, from 0 at enable.
+    pub cycle: u64,
+    /// When the master sent this cycle's SYNC (caller's clock).
+    pub sync_time: Instant,
+    /// Statusword (0x6041) as received (the last one if this cycle's is missing).
+    pub statusword: u16,
+    /// The CiA 402 state it shows (`None`: a pattern outside the standard's table).
+    pub state: Option<State>,
+    /// Position actual, rad (multi-turn, unwrapped past the i32 range).
+    pub position_rad: f64,
+    /// Velocity actual, rad/s.
+    pub velocity_rad_s: f64,
+    /// Torque actual, N m.
+    pub torque_nm: f64,
+    /// The torque set-point actually sent, N m (after rounding to ‰ and clamping).
+    pub torque_setpoint_nm: f64,
+    /// The requested torque did not fit the set-point range and was clamped.
+    pub saturated: bool,
+    /// All of this cycle's feedback arrived before the deadline; if not, the missing
+    /// values are the previous cycle's.
+    pub fresh: bool,
+    /// Counters since enable.
+    pub counters: Counters,
+}
+
+/// Counters of the cyclic exchange since enable.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Counters {
+    /// Cycles run.
+    pub cycles: u64,
+    /// Feedback messages (TPDOs) missing at their cycle's deadline.
+    pub missed: u64,
+    /// Of those, arrived after the deadline (before the next cycle began).
+    pub late: u64,
+    /// Of those, never arrived (`missed - late`, counted when the next cycle begins).
+    pub lost: u64,
+    /// Set-points clamped to the drive's range.
+    pub saturated: u64,
+    /// Frames not for this exchange (other nodes, SDO, unknown COB-IDs, duplicates),
+    /// ignored.
+    pub ignored: u64,
+    /// Frames for this exchange that could not be decoded (short PDO, EMCY not 8
+    /// bytes, bad heartbeat), ignored.
+    pub malformed: u64,
+}
+
+/// A drive in cyclic synchronous torque mode, enabled. Fieldbus-independent.
+pub trait CyclicDrive {
+    /// The error type of the implementation.
+    type Error: std::error::Error + Send + Sync + 'static;
+
+    /// One cycle: sends the torque set-point (N m) and the synchronisation, then waits,
+    /// at most until `deadline`, for the feedback of this cycle. Pace calls at the
+    /// drive's cycle period.
+    fn cycle(&mut self, torque_nm: f64, deadline: Instant) -> Result<Feedback, Self::Error>;
+
+    /// The configured cycle period.
+    fn cycle_period(&self) -> Duration;
+
+    /// Rated torque, N m (the set-point range is about ±32 times it).
+    fn rated_torque_nm(&self) -> f64;
+
+    /// Counters since enable.
+    fn counters(&self) -> Counters;
+}

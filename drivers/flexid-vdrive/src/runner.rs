@@ -47,6 +47,11 @@ impl<B: CanBus, P: Physics> Runner<B, P> {
         &self.drive
     }
 
+    /// The bus's name (`udp:239.74.163.2:43113`, `vcan0`, ...).
+    pub fn interface(&self) -> &str {
+        self.bus.interface()
+    }
+
     /// Frames that could not be sent.
     pub fn send_errors(&self) -> u64 {
         self.send_errors
@@ -55,8 +60,18 @@ impl<B: CanBus, P: Physics> Runner<B, P> {
     /// Boots the drive (boot-up frame), then serves the bus until `stop` is set. Bus
     /// reports (error frames, overruns) are logged and survived; a broken bus ends the run.
     pub fn run(&mut self, stop: &AtomicBool) -> Result<(), RunError> {
+        self.power_on();
+        self.serve(stop)
+    }
+
+    /// Boots the drive: sends the boot-up frame.
+    pub fn power_on(&mut self) {
         let out = self.drive.power_on(self.epoch.elapsed());
         self.send(&out);
+    }
+
+    /// Serves the bus until `stop` is set (after [`Runner::power_on`]).
+    pub fn serve(&mut self, stop: &AtomicBool) -> Result<(), RunError> {
         while !stop.load(Ordering::Relaxed) {
             let now = self.epoch.elapsed();
             let out = self.drive.tick(now);

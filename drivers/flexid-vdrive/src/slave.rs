@@ -305,7 +305,7 @@ impl Slave {
                 return None; // canopen-rs: 0x06070012
             }
         }
-        if !expedited {
+        if !expedited || len > 4 {
             return None; // only small values are range-checked
         }
         let mut raw = [0u8; 4];
@@ -335,15 +335,13 @@ impl Slave {
                         let cur = od::get_u32(od, i, 1).unwrap_or(0x8000_0000);
                         let cob = v & 0x7FF;
                         let new_valid = v & 0x8000_0000 == 0;
-                        if v & 0x2000_0000 != 0 || (v & 0x1FFF_F800) != 0 {
-                            Some(abort::VALUE_RANGE) // 29-bit ids not supported
-                        } else if new_valid && cur & 0x8000_0000 == 0 && (cur & 0x7FF) != cob {
-                            Some(abort::VALUE_RANGE) // CAN-ID change while valid
-                        } else if new_valid && (cob == 0 || cob < 0x80 && cob != 0) {
-                            Some(abort::VALUE_RANGE) // NMT/SYNC range is reserved
-                        } else {
-                            None
-                        }
+                        // 29-bit ids are not supported, the CAN-ID must not change
+                        // while the PDO is valid, and 0x000..0x07F (NMT, SYNC) is reserved.
+                        let bad = v & 0x2000_0000 != 0
+                            || (v & 0x1FFF_F800) != 0
+                            || (new_valid && cur & 0x8000_0000 == 0 && (cur & 0x7FF) != cob)
+                            || (new_valid && cob < 0x80);
+                        bad.then_some(abort::VALUE_RANGE)
                     }
                     2 => {
                         let ok = if tpdo { v <= 240 } else { v <= 240 || v >= 254 };

@@ -324,3 +324,50 @@ fn malformed_frames_never_panic_and_leave_the_drive_working() {
     enabled(&mut d);
     assert_eq!(d.sync_statusword() & 0x6F, 0x27);
 }
+
+#[test]
+fn csv_mode_tracks_a_target_velocity() {
+    let mut d = Dut::new();
+    d.sdo_ok([0x2F, 0x60, 0x60, 0x00, 9, 0, 0, 0]);
+    // RPDO1 remapped to controlword + target velocity (0x60FF, 32 bit).
+    d.sdo_ok([0x23, 0x00, 0x14, 0x01, 0x05, 0x02, 0x00, 0x80]);
+    d.sdo_ok([0x2F, 0x00, 0x16, 0x00, 0, 0, 0, 0]);
+    d.sdo_ok([0x23, 0x00, 0x16, 0x02, 0x20, 0x00, 0xFF, 0x60]);
+    d.sdo_ok([0x2F, 0x00, 0x16, 0x00, 2, 0, 0, 0]);
+    d.sdo_ok([0x23, 0x00, 0x14, 0x01, 0x05, 0x02, 0x00, 0x00]);
+    d.start();
+    // 10 rad/s = 1668861 inc/s = 0x001976FD.
+    let target = (10.0 * f64::from(1u32 << 20) / (2.0 * std::f64::consts::PI)).round() as i32;
+    let [a, b, c, e] = target.to_le_bytes();
+    for cw in [0x06u8, 0x07, 0x0F] {
+        d.send(0x205, &[cw, 0, a, b, c, e]);
+    }
+    for _ in 0..4000 {
+        d.sync();
+    }
+    let v = d.drive.last_sample().velocity_rad_s;
+    assert!((v - 10.0).abs() < 0.2, "{v}");
+    assert_eq!(d.drive.fault(), None);
+}
+
+#[test]
+fn csp_mode_reaches_a_target_position() {
+    let mut d = Dut::new();
+    d.sdo_ok([0x2F, 0x60, 0x60, 0x00, 8, 0, 0, 0]);
+    d.sdo_ok([0x23, 0x00, 0x14, 0x01, 0x05, 0x02, 0x00, 0x80]);
+    d.sdo_ok([0x2F, 0x00, 0x16, 0x00, 0, 0, 0, 0]);
+    d.sdo_ok([0x23, 0x00, 0x16, 0x02, 0x20, 0x00, 0x7A, 0x60]);
+    d.sdo_ok([0x2F, 0x00, 0x16, 0x00, 2, 0, 0, 0]);
+    d.sdo_ok([0x23, 0x00, 0x14, 0x01, 0x05, 0x02, 0x00, 0x00]);
+    d.start();
+    let target: i32 = 1 << 19; // half a revolution
+    let [a, b, c, e] = target.to_le_bytes();
+    for cw in [0x06u8, 0x07, 0x0F] {
+        d.send(0x205, &[cw, 0, a, b, c, e]);
+    }
+    for _ in 0..6000 {
+        d.sync();
+    }
+    let p = d.drive.last_sample().position_rad;
+    assert!((p - std::f64::consts::PI).abs() < 0.02, "{p}");
+}

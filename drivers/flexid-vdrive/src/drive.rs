@@ -202,6 +202,14 @@ impl<P: Physics> VirtualDrive<P> {
                 }
                 if !communication_only {
                     self.reset_application();
+                } else if let Some(k) = self.fault {
+                    // The fault outlives a communication reset: keep 0x1001 showing it.
+                    let reg = k.error_register().0 | canopen_rs::ErrorRegister::GENERIC;
+                    od::set(
+                        self.slave.od_mut(),
+                        idx::ERROR_REGISTER,
+                        Value::Unsigned8(reg),
+                    );
                 }
                 self.boot(now, &mut out);
             }

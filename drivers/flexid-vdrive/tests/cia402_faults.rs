@@ -371,3 +371,29 @@ fn csp_mode_reaches_a_target_position() {
     let p = d.drive.last_sample().position_rad;
     assert!((p - std::f64::consts::PI).abs() < 0.02, "{p}");
 }
+
+#[test]
+fn reset_communication_keeps_the_fault_and_reset_node_clears_it() {
+    let mut d = Dut::with(&plant("heartbeat_consumer_ms = 50\nmaster_node_id = 1"));
+    enabled(&mut d);
+    d.send(0x701, &[0x05]);
+    d.run_for(ms(60));
+    assert_eq!(d.drive.state(), State::Fault);
+    assert_eq!(d.send(0x000, &[0x82, 0x05]), vec![frame(0x705, &[0x00])]);
+    assert_eq!(d.drive.state(), State::Fault);
+    assert_eq!(
+        d.sdo([0x40, 0x01, 0x10, 0x00, 0, 0, 0, 0]),
+        [0x4F, 0x01, 0x10, 0x00, 0x11, 0, 0, 0]
+    );
+    assert_eq!(
+        d.sdo([0x40, 0x3F, 0x60, 0x00, 0, 0, 0, 0]),
+        [0x4B, 0x3F, 0x60, 0x00, 0x30, 0x81, 0, 0]
+    );
+    assert_eq!(d.send(0x000, &[0x81, 0x05]), vec![frame(0x705, &[0x00])]);
+    assert_eq!(d.drive.state(), State::SwitchOnDisabled);
+    assert_eq!(d.drive.fault(), None);
+    assert_eq!(
+        d.sdo([0x40, 0x41, 0x60, 0x00, 0, 0, 0, 0]),
+        [0x4B, 0x41, 0x60, 0x00, 0x40, 0x00, 0, 0]
+    );
+}

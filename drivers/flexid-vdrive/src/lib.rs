@@ -42,6 +42,34 @@ pub fn linear_drive(
     Ok(VirtualDrive::new(cfg, chain)?)
 }
 
+/// A drive in front of the plant file's physics, boxed: with the `plantsim` feature and an
+/// `[effects]` section, the main crate's nonlinear `flexid::plant::PlantSim` (noise seeded
+/// by `seed`); otherwise the exact [`LinearChain`].
+pub fn plant_drive(
+    plant: &DrivePlant,
+    clock: ClockMode,
+    seed: u64,
+) -> Result<VirtualDrive<Box<dyn Physics>>, BuildError> {
+    let mut cfg = plant.drive_config();
+    cfg.clock = clock;
+    #[cfg(feature = "plantsim")]
+    if plant.plant.has_effects() {
+        let mut sim = flexid::plant::PlantSim::new(
+            &plant.plant.spec(),
+            cfg.cycle_hz,
+            plant.plant.substeps(),
+            seed,
+        )
+        .map_err(|e| BuildError::Plant(e.to_string()))?;
+        sim.set_initial_velocity(plant.plant.measurement.initial_velocity_rad_s);
+        return Ok(VirtualDrive::new(cfg, Box::new(sim) as Box<dyn Physics>)?);
+    }
+    let _ = seed; // the linear chain is noise-free
+    let mut chain = LinearChain::new(&plant.plant.chain, cfg.cycle_hz)?;
+    chain.set_velocity(plant.plant.measurement.initial_velocity_rad_s);
+    Ok(VirtualDrive::new(cfg, Box::new(chain) as Box<dyn Physics>)?)
+}
+
 /// Errors building a drive from a plant file.
 #[derive(Debug, thiserror::Error)]
 pub enum BuildError {
@@ -51,4 +79,7 @@ pub enum BuildError {
     /// The drive could not be built.
     #[error("drive: {0}")]
     Drive(#[from] DriveError),
+    /// The nonlinear plant could not be built (`plantsim` feature).
+    #[error("plant: {0}")]
+    Plant(String),
 }

@@ -1,19 +1,11 @@
 //! The physics behind the drive: a trait the drive samples and steps once per cycle, and
 //! its exact linear implementation for an n-mass chain.
 //!
-//! The nonlinear plant of the main crate (`flexid::plant::PlantSim`, not merged yet) has
-//! the same shape (`sample()` / `step(torque_cmd_nm)`), so plugging it in is one delegating
-//! impl:
-//!
-//! ```ignore
-//! impl Physics for flexid::plant::PlantSim {
-//!     fn sample(&mut self) -> AxisSample { let s = PlantSim::sample(self); AxisSample { ..s.into() } }
-//!     fn step(&mut self, torque_nm: f64) { PlantSim::step(self, torque_nm) }
-//! }
-//! ```
-//!
-//! (once merged, [`AxisSample`] here should become `pub use flexid::plant::AxisSample;`,
-//! which makes `sample` a plain delegation too).
+//! The nonlinear plant of the main crate, `flexid::plant::PlantSim` (merged separately),
+//! has the same shape (`sample()` / `step(torque_cmd_nm)`, an `AxisSample` with the same
+//! fields). Its impl below is compiled with the `plantsim` feature, once `flexid::plant`
+//! exists; after that merge `AxisSample` here can become `pub use flexid::plant::AxisSample;`
+//! and `sample` a plain `PlantSim::sample(self)`.
 
 use flexid::model::{Chain, ModelError, StateSpace};
 
@@ -48,6 +40,24 @@ impl<P: Physics + ?Sized> Physics for Box<P> {
     }
     fn step(&mut self, torque_nm: f64) {
         (**self).step(torque_nm)
+    }
+}
+
+/// The main crate's nonlinear plant (current loop, friction, backlash, ..., noise).
+#[cfg(feature = "plantsim")]
+impl Physics for flexid::plant::PlantSim {
+    fn sample(&mut self) -> AxisSample {
+        let s = flexid::plant::PlantSim::sample(self);
+        AxisSample {
+            time_s: s.time_s,
+            position_rad: s.position_rad,
+            velocity_rad_s: s.velocity_rad_s,
+            torque_nm: s.torque_nm,
+            load_position_rad: s.load_position_rad,
+        }
+    }
+    fn step(&mut self, torque_nm: f64) {
+        flexid::plant::PlantSim::step(self, torque_nm)
     }
 }
 

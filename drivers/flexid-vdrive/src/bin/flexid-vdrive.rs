@@ -16,7 +16,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use clap::{Parser, ValueEnum};
 use flexid_can::timing::Paced;
 use flexid_can::{CanBus, UdpConfig, UdpMulticastBus};
-use flexid_vdrive::{linear_drive, ClockMode, DrivePlant, Runner};
+use flexid_vdrive::{plant_drive, ClockMode, DrivePlant, Runner};
 
 static STOP: AtomicBool = AtomicBool::new(false);
 
@@ -53,6 +53,9 @@ struct Cli {
     /// with `ip link`).
     #[arg(long)]
     bitrate: Option<u32>,
+    /// Seed of the plant's noise (nonlinear plant with [effects] only).
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
 }
 
 enum BusSpec {
@@ -101,8 +104,8 @@ fn parse_bus(s: &str) -> Result<BusSpec, String> {
     Ok(BusSpec::Udp(cfg))
 }
 
-fn serve<B: CanBus>(bus: B, plant: &DrivePlant, clock: ClockMode) -> ExitCode {
-    let drive = match linear_drive(plant, clock) {
+fn serve<B: CanBus>(bus: B, plant: &DrivePlant, clock: ClockMode, seed: u64) -> ExitCode {
+    let drive = match plant_drive(plant, clock, seed) {
         Ok(d) => d,
         Err(e) => {
             eprintln!("flexid-vdrive: {e}");
@@ -177,8 +180,8 @@ fn main() -> ExitCode {
     match spec {
         BusSpec::Udp(cfg) => match UdpMulticastBus::open(cfg) {
             Ok(bus) => match cli.bitrate {
-                Some(b) if b > 0 => serve(Paced::new(bus, b), &plant, clock),
-                _ => serve(bus, &plant, clock),
+                Some(b) if b > 0 => serve(Paced::new(bus, b), &plant, clock, cli.seed),
+                _ => serve(bus, &plant, clock, cli.seed),
             },
             Err(e) => {
                 eprintln!("flexid-vdrive: {e}");
@@ -191,7 +194,7 @@ fn main() -> ExitCode {
                 if cli.bitrate.is_some() {
                     tracing::info!("--bitrate ignored on SocketCAN (set it with ip link)");
                 }
-                serve(bus, &plant, clock)
+                serve(bus, &plant, clock, cli.seed)
             }
             Err(e) => {
                 eprintln!("flexid-vdrive: {e}");

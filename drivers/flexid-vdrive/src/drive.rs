@@ -261,7 +261,11 @@ impl<P: Physics> VirtualDrive<P> {
 
     /// When [`VirtualDrive::tick`] next has something to do.
     pub fn next_deadline(&self) -> Option<Duration> {
-        match (self.producer.next_due(), self.consumer.deadline()) {
+        // The consumer only matters while it can fault the drive (else a lost master
+        // would leave a deadline in the past and a runner spinning on it).
+        let supervised = self.fault.is_none() && self.dc.state() == State::OperationEnabled;
+        let consumer = self.consumer.deadline().filter(|_| supervised);
+        match (self.producer.next_due(), consumer) {
             (Some(a), Some(b)) => Some(a.min(b)),
             (a, b) => a.or(b),
         }

@@ -64,12 +64,12 @@ fn script(shown: u8) -> Vec<(Raw, Vec<Raw>)> {
         ),
         // NMT enter pre-operational
         (raw(0x000, &[0x80, 0x05]), vec![]),
-        // 0x6502 supported modes = PT|CSP|CSV|CST = 0x384
+        // 0x6502 supported modes = PT|CSP|CSV|CST = 0x388
         (
             raw(0x605, &[0x40, 0x02, 0x65, 0x00, 0, 0, 0, 0]),
             vec![raw(
                 0x585,
-                &[0x43, 0x02, 0x65, 0x00, 0x84, 0x03, 0x00, 0x00],
+                &[0x43, 0x02, 0x65, 0x00, 0x88, 0x03, 0x00, 0x00],
             )],
         ),
         // RPDO1: disable (0x80000205), count 0, 0x60400010, 0x60710010, count 2, type 1, enable

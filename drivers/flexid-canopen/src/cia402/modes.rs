@@ -39,10 +39,10 @@ impl ModeOfOperation {
         })
     }
 
-    /// Its bit in 0x6502 supported drive modes (bit 2 PT, 7 CSP, 8 CSV, 9 CST).
+    /// Its bit in 0x6502 supported drive modes (bit 3 PT (tq), 7 CSP, 8 CSV, 9 CST; CiA 402-2).
     pub const fn supported_bit(self) -> u32 {
         match self {
-            Self::ProfileTorque => 1 << 2,
+            Self::ProfileTorque => 1 << 3,
             Self::CyclicSyncPosition => 1 << 7,
             Self::CyclicSyncVelocity => 1 << 8,
             Self::CyclicSyncTorque => 1 << 9,

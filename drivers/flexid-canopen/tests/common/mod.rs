@@ -107,7 +107,7 @@ pub fn sim_drive(
         od.insert((0x1018, 2), (4, 0x0000_0402));
         od.insert((0x1018, 3), (4, 0x0001_0000));
         od.insert((0x1018, 4), (4, 42));
-        od.insert((0x6502, 0), (4, 0x384));
+        od.insert((0x6502, 0), (4, 0x388));
         od.insert((0x6061, 0), (1, 0));
         od.insert((0x603F, 0), (2, 0));
         od.insert((0x1001, 0), (1, 0));

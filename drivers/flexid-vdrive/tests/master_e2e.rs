@@ -1,16 +1,8 @@
-//! PENDING (not compiled: cargo does not discover tests/pending/): the CANopen master of
-//! branch `canopen` (drivers/flexid-canopen, checked at 5d8192a) against this drive.
-//! After both branches are merged, move this file to tests/ and add to Cargo.toml:
-//!
-//! ```toml
-//! [dev-dependencies]
-//! flexid-canopen = { path = "../flexid-canopen" }
-//! ```
-//!
-//! On a trial merge it passed: bring-up (reset, identity, flexid-vdrive profile, PDO
-//! mapping, 0x1006 = 1000 us re-discretising the 2 kHz plant file, heartbeats, CST), enable,
-//! 1000 cycles whose feedback positions equal `flexid::sim::simulate_position` at 1 kHz
-//! within half an encoder increment, with no lag.
+//! The CANopen master of `drivers/flexid-canopen` against this drive on an in-process bus:
+//! bring-up (reset, identity, flexid-vdrive profile, PDO mapping, 0x1006 = 1000 us
+//! re-discretising the 2 kHz plant file, heartbeats, CST), enable, and 1000 cycles whose
+//! feedback positions equal `flexid::sim::simulate_position` at 1 kHz within half an encoder
+//! increment, with no lag.
 
 mod common;
 use common::*;

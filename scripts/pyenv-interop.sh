@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# Creates .venv-interop (gitignored) with python-can and msgpack for the flexid-can
-# interop test (drivers/flexid-can/tests/udp_interop.rs). Idempotent: an existing venv
+# Creates .venv-interop (gitignored) with python-can, msgpack and python-canopen for the
+# interop tests (drivers/flexid-can/tests/udp_interop.rs, drivers/flexid-vdrive/tests/
+# {pycan,canopen402}_interop.rs). Idempotent: an existing venv
 # with the pinned versions is left as it is.
 #
 # The test also needs multicast on the loopback interface (this machine has no route for
@@ -13,24 +14,26 @@ set -euo pipefail
 
 PYCAN_VERSION=4.6.1
 MSGPACK_VERSION=1.1.1
+CANOPEN_VERSION=2.4.1
 
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 venv="$root/.venv-interop"
 python="${PYTHON:-python3}"
 
 if [ -x "$venv/bin/python" ] &&
-    "$venv/bin/python" - "$PYCAN_VERSION" "$MSGPACK_VERSION" <<'PY' 2>/dev/null; then
+    "$venv/bin/python" - "$PYCAN_VERSION" "$MSGPACK_VERSION" "$CANOPEN_VERSION" <<'PY' 2>/dev/null; then
 import sys
-import can, msgpack
-ok = can.__version__ == sys.argv[1] and ".".join(map(str, msgpack.version)) == sys.argv[2]
+import can, canopen, msgpack
+ok = (can.__version__ == sys.argv[1] and ".".join(map(str, msgpack.version)) == sys.argv[2]
+      and canopen.__version__ == sys.argv[3])
 sys.exit(0 if ok else 1)
 PY
-    echo "pyenv-interop: $venv up to date (python-can $PYCAN_VERSION, msgpack $MSGPACK_VERSION)"
+    echo "pyenv-interop: $venv up to date (python-can $PYCAN_VERSION, msgpack $MSGPACK_VERSION, canopen $CANOPEN_VERSION)"
 else
     "$python" -m venv "$venv"
     "$venv/bin/python" -m pip install --quiet --disable-pip-version-check \
-        "python-can==$PYCAN_VERSION" "msgpack==$MSGPACK_VERSION"
-    echo "pyenv-interop: installed python-can $PYCAN_VERSION, msgpack $MSGPACK_VERSION into $venv"
+        "python-can==$PYCAN_VERSION" "msgpack==$MSGPACK_VERSION" "canopen==$CANOPEN_VERSION"
+    echo "pyenv-interop: installed python-can $PYCAN_VERSION, msgpack $MSGPACK_VERSION, canopen $CANOPEN_VERSION into $venv"
 fi
 
 # Multicast on loopback (needs root; harmless when already set up).

@@ -15,7 +15,7 @@ fn python_can_master_talks_to_the_binary() {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..");
     let py = root.join(".venv-interop/bin/python");
     if !py.exists() {
-        eprintln!("skipped: run scripts/pyenv-interop.sh");
+        common::skip("no .venv-interop: run scripts/pyenv-interop.sh");
         return;
     }
     if !common::loopback_multicast() {

@@ -151,7 +151,8 @@ fn simulate_to(
         "simulated: {} (exact ZOH sampling{}{})",
         plant.name.as_deref().unwrap_or("plant file"),
         plant
-            .measurement
+            .spec()
+            .effects
             .encoder_counts_per_rev
             .map(|c| format!(", {c}-count encoder"))
             .unwrap_or_default(),

@@ -242,3 +242,10 @@ fn plant_sim_is_fast() {
     assert!(acc.is_finite());
     assert!(rate > 40_000.0, "{rate} cycles/s");
 }
+
+#[test]
+fn plant_sim_can_move_to_the_drive_thread() {
+    fn send<T: Send + 'static>() {}
+    send::<PlantSim>();
+    send::<AxisSample>();
+}

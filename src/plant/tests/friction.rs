@@ -116,3 +116,34 @@ fn initial_velocity_keeps_the_motor_slipping() {
     );
     assert!(!sim.is_stuck());
 }
+
+/// Stick-slip under a sine 1.2 times the Coulomb torque (lone motor: it comes to rest
+/// before the command falls below -Tc): at every cycle end the motor is held
+/// exactly when the held command is within the Coulomb torque and it has come to rest;
+/// never held while the command exceeds it, and it dwells at rest between the slips.
+#[test]
+fn sine_above_coulomb_sticks_only_below_coulomb() {
+    let (j, tc) = (1e-3, 0.1);
+    let spec = with_friction(Chain::new(vec![j], vec![], vec![]).unwrap(), tc, 1e-4);
+    let mut sim = PlantSim::new(&spec, 1000.0, 10, 1).unwrap();
+    let (mut stuck_cycles, mut slip_cycles) = (0, 0);
+    for k in 0..4000 {
+        let u = 1.2 * tc * (2.0 * PI * k as f64 / 200.0).sin();
+        let before = sim.sample();
+        sim.step(u);
+        if sim.is_stuck() {
+            stuck_cycles += 1;
+            assert!(u.abs() <= tc, "held at cycle {k} with command {u}");
+            assert_eq!(sim.sample().velocity_rad_s, 0.0);
+        } else {
+            slip_cycles += 1;
+        }
+        if u.abs() > tc && before.velocity_rad_s == 0.0 {
+            assert!(!sim.is_stuck(), "breakaway at cycle {k}");
+        }
+    }
+    assert!(
+        stuck_cycles > 400 && slip_cycles > 400,
+        "{stuck_cycles} stuck, {slip_cycles} slipping"
+    );
+}

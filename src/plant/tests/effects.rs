@@ -443,3 +443,39 @@ fn free_undamped_plant_conserves_energy_and_damping_dissipates_it() {
     }
     assert!(prev < 0.99 * start, "{prev} vs {start}");
 }
+
+/// With an offset, gravity loads the axis from the start: holding `T = mgl sin(offset)`
+/// the chain settles with the load at 0 and the spring deflected by `T/c`.
+#[test]
+fn gravity_offset_is_held_by_its_static_torque() {
+    let chain = Chain::new(vec![2e-3, 6e-3], vec![800.0], vec![2.0]).unwrap();
+    let (mgl, offset) = (0.4, 0.3);
+    let mut spec = PlantSpec::linear(chain);
+    spec.effects.gravity = Some(Gravity {
+        m_g_l_nm: mgl,
+        offset_rad: offset,
+    });
+    // viscous motor friction damps the swing (it carries no torque at rest)
+    spec.effects.friction = Some(Friction {
+        coulomb_nm: 0.0,
+        viscous_nms_per_rad: 0.05,
+    });
+    let hold = mgl * f64::sin(offset);
+    let mut sim = PlantSim::new(&spec, 2000.0, 10, 1).unwrap();
+    for _ in 0..8000 {
+        sim.step(hold);
+    }
+    let p = sim.body_positions();
+    assert!(p[1].abs() < 1e-9, "load at {}", p[1]);
+    assert!(
+        ((p[0] - p[1]) - hold / 800.0).abs() < 1e-9,
+        "deflection {}",
+        p[0] - p[1]
+    );
+    // without the holding torque the arm falls towards hanging down (-offset)
+    sim.reset();
+    for _ in 0..200 {
+        sim.step(0.0);
+    }
+    assert!(sim.sample().load_position_rad < -0.01);
+}

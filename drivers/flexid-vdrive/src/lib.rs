@@ -42,8 +42,7 @@ pub fn linear_drive(
     Ok(VirtualDrive::new(cfg, chain)?)
 }
 
-/// A drive in front of the plant file's physics, boxed: with the `plantsim` feature and an
-/// `[effects]` section, the main crate's nonlinear `flexid::plant::PlantSim` (noise seeded
+/// A drive in front of the plant file's physics, boxed: with an `[effects]` section, the main crate's nonlinear `flexid::plant::PlantSim` (noise seeded
 /// by `seed`); otherwise the exact [`LinearChain`].
 pub fn plant_drive(
     plant: &DrivePlant,
@@ -52,7 +51,6 @@ pub fn plant_drive(
 ) -> Result<VirtualDrive<Box<dyn Physics>>, BuildError> {
     let mut cfg = plant.drive_config();
     cfg.clock = clock;
-    #[cfg(feature = "plantsim")]
     if plant.plant.has_effects() {
         let sim = physics::PlantSimPhysics::new(
             plant.plant.spec(),

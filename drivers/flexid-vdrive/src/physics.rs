@@ -1,11 +1,8 @@
 //! The physics behind the drive: a trait the drive samples and steps once per cycle, and
 //! its exact linear implementation for an n-mass chain.
 //!
-//! The nonlinear plant of the main crate, `flexid::plant::PlantSim` (merged separately),
-//! has the same shape (`sample()` / `step(torque_cmd_nm)`, an `AxisSample` with the same
-//! fields). Its impl below is compiled with the `plantsim` feature, once `flexid::plant`
-//! exists; after that merge `AxisSample` here can become `pub use flexid::plant::AxisSample;`
-//! and `sample` a plain `PlantSim::sample(self)`.
+//! The nonlinear plant of the main crate, `flexid::plant::PlantSim` (every effect of a plant
+//! file's `[effects]` section), is the other implementation.
 
 use flexid::model::{Chain, ModelError, StateSpace};
 
@@ -59,7 +56,6 @@ impl<P: Physics + ?Sized> Physics for Box<P> {
 }
 
 /// The main crate's nonlinear plant (current loop, friction, backlash, ..., noise).
-#[cfg(feature = "plantsim")]
 impl Physics for flexid::plant::PlantSim {
     fn sample(&mut self) -> AxisSample {
         let s = flexid::plant::PlantSim::sample(self);
@@ -78,7 +74,6 @@ impl Physics for flexid::plant::PlantSim {
 
 /// [`flexid::plant::PlantSim`] with what it needs to be rebuilt at another cycle rate (the
 /// master's 0x1006). A rebuild restarts the plant at its initial state (configuration time).
-#[cfg(feature = "plantsim")]
 pub struct PlantSimPhysics {
     sim: flexid::plant::PlantSim,
     spec: flexid::plant::PlantSpec,
@@ -87,7 +82,6 @@ pub struct PlantSimPhysics {
     initial_velocity_rad_s: f64,
 }
 
-#[cfg(feature = "plantsim")]
 impl PlantSimPhysics {
     /// The plant of `spec` at `cycle_hz`, `substeps` per cycle, noise `seed`, every body
     /// starting at `initial_velocity_rad_s`.
@@ -111,7 +105,6 @@ impl PlantSimPhysics {
     }
 }
 
-#[cfg(feature = "plantsim")]
 impl Physics for PlantSimPhysics {
     fn sample(&mut self) -> AxisSample {
         Physics::sample(&mut self.sim)

@@ -1,8 +1,5 @@
-//! The main crate's nonlinear plant behind the drive (feature `plantsim`, after the
-//! `plant` branch is merged): TPDO positions through RPDO1 + SYNC against
+//! The main crate's nonlinear plant behind the drive: TPDO positions through RPDO1 + SYNC against
 //! `flexid::plant::simulate_positions` of the same spec.
-
-#![cfg(feature = "plantsim")]
 
 mod common;
 use common::*;

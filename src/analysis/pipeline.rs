@@ -293,7 +293,16 @@ pub fn analyze(rec: &Recording, opts: &AnalysisOptions) -> Result<Analysis, Anal
         None => {
             let hi = spectra.len().min(opts.max_masses.saturating_sub(1));
             let lo = hi.saturating_sub(2);
-            let candidates: Vec<Chain> = (lo..=hi).filter_map(chain_with).collect();
+            let mut candidates: Vec<Chain> = (lo..=hi).filter_map(chain_with).collect();
+            if candidates.is_empty() {
+                // The detected pairs do not interlace into any chain (e.g. a pair split by
+                // backlash): the rigid body is still a model, and the report says why.
+                analysis.notes.push(format!(
+                    "the {} detected pairs do not form a spring-mass chain (anti-resonances and resonances must interlace): only the rigid body is fitted",
+                    spectra.len()
+                ));
+                candidates.extend(exact_for(&[]));
+            }
             let sel = select_order(&analysis.measured.frf, &candidates, &fit_opts)?;
             analysis.orders = sel.candidates;
             sel.fit

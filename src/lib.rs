@@ -15,6 +15,8 @@
 //! * [`plot`]: Bode plots as SVG.
 //! * [`import`]: MAT v5 and DaISy files into recordings.
 //! * [`sim`]: simulated recordings of chains (exact ZOH sampling, noise, quantisation).
+//! * [`rt`]: the real-time cycle thread (absolute-deadline pacing, `SCHED_FIFO`/`mlockall`
+//!   when granted, timing statistics).
 //!
 //! Conventions: SI units throughout (kg m^2, N m/rad, N m s/rad, rad, rad/s, Hz, s). The
 //! plant is the motor mobility: motor torque -> motor angular velocity. Body 1 is the motor.
@@ -28,6 +30,7 @@ pub mod import;
 pub mod model;
 pub mod plot;
 pub mod recording;
+pub mod rt;
 pub mod sim;
 
 pub use num_complex::Complex64;

@@ -87,7 +87,7 @@ fn cycle_thread_allocates_nothing_per_cycle() {
 #[test]
 fn pacer_and_stats_allocate_nothing() {
     let mut p = Pacer::new(Duration::from_micros(250)).unwrap();
-    let mut s = TimingStats::new(25_000);
+    let mut s = TimingStats::new(250_000);
     let before = allocs_here();
     for _ in 0..500 {
         let t = p.wait_next();
@@ -97,4 +97,37 @@ fn pacer_and_stats_allocate_nothing() {
     let _ = s.lateness.summary();
     assert_eq!(allocs_here() - before, 0);
     assert_eq!(s.lateness.len(), 500);
+}
+
+/// The counter works: a body that allocates once per cycle is seen.
+#[test]
+fn an_allocating_body_is_detected() {
+    let at_10 = Arc::new(AtomicU64::new(0));
+    let at_end = Arc::new(AtomicU64::new(0));
+    let (a, b) = (at_10.clone(), at_end.clone());
+    let mut n = 0u64;
+    let h = spawn_cycle_thread(
+        "alloc",
+        RtSetup::none(),
+        Duration::from_micros(250),
+        move |_| {
+            n += 1;
+            std::hint::black_box(Box::new(n));
+            if n == 10 {
+                a.store(allocs_here(), Ordering::Relaxed);
+            }
+            if n == 100 {
+                b.store(allocs_here(), Ordering::Relaxed);
+                return ControlFlow::Break(());
+            }
+            ControlFlow::Continue(())
+        },
+    )
+    .unwrap();
+    h.join().unwrap();
+    // one alloc + one free per cycle
+    assert_eq!(
+        at_end.load(Ordering::Relaxed) - at_10.load(Ordering::Relaxed),
+        2 * 90
+    );
 }

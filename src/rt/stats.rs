@@ -198,13 +198,19 @@ pub struct LatencySummary {
 
 /// Timing of a cycle loop: wake-up lateness, late wake-ups, overruns, and the body's
 /// run time. Allocates once at construction, never while recording.
+///
+/// The lateness recorded is measured from the deadline the loop **waited for**: after an
+/// overrun that skipped `missed` deadlines it is `missed * period + Tick::lateness_ns`, so
+/// a 1.2-period stall shows as such (not as 0.2 period on the deadline served).
 #[derive(Debug, Clone)]
 pub struct TimingStats {
-    /// Wake-up lateness (woke_at - deadline), ns.
+    /// Wake-up lateness from the deadline waited for, ns.
     pub lateness: Histogram,
     /// Run time of the loop body per cycle, ns.
     pub body: Histogram,
-    /// A wake-up later than this (ns) counts as late.
+    /// The period, ns.
+    pub period_ns: u64,
+    /// A wake-up later than this (ns) counts as late: 10 % of the period by default.
     pub late_threshold_ns: u64,
     /// Wake-ups later than `late_threshold_ns`.
     pub late_wakeups: u64,
@@ -215,24 +221,27 @@ pub struct TimingStats {
 }
 
 impl TimingStats {
-    /// Empty statistics; a wake-up later than `late_threshold_ns` counts as late (the
-    /// cycle thread uses 10 % of the period).
-    pub fn new(late_threshold_ns: u64) -> Self {
+    /// Empty statistics for a loop of period `period_ns`; late means later than 10 % of
+    /// the period (change `late_threshold_ns` for another threshold).
+    pub fn new(period_ns: u64) -> Self {
         TimingStats {
             lateness: Histogram::new(),
             body: Histogram::new(),
-            late_threshold_ns,
+            period_ns,
+            late_threshold_ns: period_ns / 10,
             late_wakeups: 0,
             overruns: 0,
             missed_deadlines: 0,
         }
     }
 
-    /// Records one wake-up: its lateness (ns) and the deadlines skipped before it.
+    /// Records one wake-up: its lateness on the deadline served (ns, `Tick::lateness_ns`)
+    /// and the deadlines skipped before it (`Tick::missed`).
     #[inline]
     pub fn record_wakeup(&mut self, lateness_ns: u64, missed: u64) {
-        self.lateness.record(lateness_ns);
-        if lateness_ns > self.late_threshold_ns {
+        let late = lateness_ns.saturating_add(missed.saturating_mul(self.period_ns));
+        self.lateness.record(late);
+        if late > self.late_threshold_ns {
             self.late_wakeups += 1;
         }
         if missed > 0 {
@@ -344,12 +353,14 @@ mod tests {
 
     #[test]
     fn stats_count_late_and_overruns() {
-        let mut s = TimingStats::new(100);
+        let mut s = TimingStats::new(1000);
+        assert_eq!(s.late_threshold_ns, 100);
         s.record_wakeup(50, 0);
         s.record_wakeup(150, 0);
         s.record_wakeup(20, 3);
         s.record_wakeup(101, 1);
-        assert_eq!(s.late_wakeups, 2);
+        assert_eq!(s.late_wakeups, 3);
+        assert_eq!(s.lateness.max(), 3020);
         assert_eq!(s.overruns, 2);
         assert_eq!(s.missed_deadlines, 4);
         assert_eq!(s.lateness.len(), 4);

@@ -95,6 +95,7 @@ pub struct RtGranted {
 
 /// Why a setting was refused: the OS error, or not supported on this system.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(not(target_os = "linux"), allow(dead_code))]
 pub(crate) enum Refusal {
     /// The call failed with this errno.
     Errno(i32),

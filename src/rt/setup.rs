@@ -101,6 +101,10 @@ pub(crate) enum Refusal {
     Errno(i32),
     /// The value is outside what the call accepts.
     Invalid,
+    /// `mlockall` not attempted: `RLIMIT_MEMLOCK` is this many bytes and the process
+    /// lacks `CAP_IPC_LOCK`, so with `MCL_FUTURE` later allocations past the limit would
+    /// fail (and abort the process).
+    MemlockLimit(u64),
     /// Not supported on this operating system.
     #[cfg_attr(target_os = "linux", allow(dead_code))]
     Unsupported,
@@ -121,6 +125,11 @@ fn refusal(what: String, consequence: &str, e: Refusal, hint: &str) -> String {
             }
         }
         Refusal::Invalid => format!("{what} is out of range: {consequence}"),
+        Refusal::MemlockLimit(b) => format!(
+            "{what} not attempted (RLIMIT_MEMLOCK {} KiB without CAP_IPC_LOCK: later \
+             allocations past it would fail): {consequence}; {hint}",
+            b / 1024
+        ),
         Refusal::Unsupported => {
             format!("{what} not supported on this operating system: {consequence}")
         }
@@ -175,7 +184,28 @@ mod sys {
         }
     }
 
+    /// CAP_IPC_LOCK (bit 14) in the effective set, from /proc/self/status.
+    fn has_cap_ipc_lock() -> bool {
+        std::fs::read_to_string("/proc/self/status")
+            .ok()
+            .and_then(|s| {
+                s.lines()
+                    .find_map(|l| l.strip_prefix("CapEff:"))
+                    .and_then(|v| u64::from_str_radix(v.trim(), 16).ok())
+            })
+            .is_some_and(|caps| caps & (1 << 14) != 0)
+    }
+
     pub fn lock_memory() -> Result<(), Refusal> {
+        let mut lim = libc::rlimit {
+            rlim_cur: 0,
+            rlim_max: 0,
+        };
+        // SAFETY: valid pointer to an rlimit.
+        let rc = unsafe { libc::getrlimit(libc::RLIMIT_MEMLOCK, &mut lim) };
+        if rc == 0 && lim.rlim_cur != libc::RLIM_INFINITY && !has_cap_ipc_lock() {
+            return Err(Refusal::MemlockLimit(lim.rlim_cur as u64));
+        }
         // SAFETY: no pointers involved.
         let rc = unsafe { libc::mlockall(libc::MCL_CURRENT | libc::MCL_FUTURE) };
         if rc == 0 {

@@ -204,6 +204,7 @@ mod sys {
         // SAFETY: valid pointer to an rlimit.
         let rc = unsafe { libc::getrlimit(libc::RLIMIT_MEMLOCK, &mut lim) };
         if rc == 0 && lim.rlim_cur != libc::RLIM_INFINITY && !has_cap_ipc_lock() {
+            #[allow(clippy::unnecessary_cast)] // rlim_t is not u64 on every libc
             return Err(Refusal::MemlockLimit(lim.rlim_cur as u64));
         }
         // SAFETY: no pointers involved.

@@ -12,6 +12,10 @@
 #    target/bench/compare.md.
 # Both processes are pinned to the same core, BLAS/OpenMP to one thread. Ratios are
 # reported, not asserted; the script fails when the two sides' numbers disagree.
+# 4. runs the cycle-timing benchmark (benches/cycle_timing.rs): wake-up lateness of the
+#    real-time cycle thread against a bare clock_nanosleep loop at 1, 2 and 4 kHz (4 s per
+#    rate and loop, 1 s with --quick), written to target/bench/cycle_timing.md. It asks for
+#    SCHED_FIFO, mlockall and the last core itself and reports what it was granted.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 root=$(pwd)
@@ -65,3 +69,13 @@ data="$root/target/bench/data"
 rm -rf "$data"
 "${pin[@]}" "$exe" "${mode[@]}" --out "$data"
 "${pin[@]}" "$venv/bin/python" benches/compare.py "$data" --report "$root/target/bench/compare.md"
+
+# The cycle-timing benchmark (not pinned by taskset: it pins its cycle threads itself).
+cexe=$(cargo build --release --bench cycle_timing --message-format=json 2>/dev/null |
+    sed -n 's/.*"executable":"\([^"]*cycle_timing[^"]*\)".*/\1/p' | tail -n 1)
+if [ -z "$cexe" ] || [ ! -x "$cexe" ]; then
+    cargo build --release --bench cycle_timing # shows the error
+    echo "bench: could not find the cycle_timing executable" >&2
+    exit 1
+fi
+"$cexe" "${mode[@]}" --out "$root/target/bench/cycle_timing.md"

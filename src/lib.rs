@@ -17,6 +17,8 @@
 //! * [`sim`]: simulated recordings of chains (exact ZOH sampling, noise, quantisation).
 //! * [`plant`]: the physics plant of the simulated drive: the chain with unmodelled
 //!   effects (friction, backlash, delay, current loop, ...), a fine-step simulator.
+//! * [`rt`]: the real-time cycle thread (absolute-deadline pacing, `SCHED_FIFO`/`mlockall`
+//!   when granted, timing statistics).
 //!
 //! Conventions: SI units throughout (kg m^2, N m/rad, N m s/rad, rad, rad/s, Hz, s). The
 //! plant is the motor mobility: motor torque -> motor angular velocity. Body 1 is the motor.
@@ -31,6 +33,7 @@ pub mod model;
 pub mod plant;
 pub mod plot;
 pub mod recording;
+pub mod rt;
 pub mod sim;
 
 pub use num_complex::Complex64;

@@ -5,10 +5,12 @@
 //! * `flexid identify REC.csv [--masses N] [--json OUT.json]`
 //! * `flexid bode REC.csv --out bode.svg`
 //! * `flexid excite multisine|chirp|stepped ... --out EXC.csv`
+//! * `flexid sweep --bus udp[:GROUP[:PORT]]|vcan0|socketcan:IFACE --node 5 ...` (see [`sweep::SweepArgs`])
 
 mod commands;
 mod excite;
 pub mod plant;
+pub mod sweep;
 
 use clap::{Args, Parser, Subcommand};
 use std::path::PathBuf;
@@ -37,6 +39,8 @@ pub enum Command {
     Demo(DemoArgs),
     /// Convert a measurement file (MAT v5, DaISy ASCII, or a named preset) to a recording.
     Import(ImportArgs),
+    /// One measurement on one axis over CAN: bring-up, excite, record, identify.
+    Sweep(sweep::SweepArgs),
 }
 
 /// Options shared by the commands that identify.
@@ -176,5 +180,6 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
         Command::Simulate(a) => commands::simulate(&a),
         Command::Demo(a) => commands::demo(&a),
         Command::Import(a) => commands::import(&a),
+        Command::Sweep(a) => sweep::sweep(&a),
     }
 }

@@ -210,8 +210,9 @@ fn demo_excitation(plant: &PlantFile) -> Result<Excitation, CliError> {
     })
 }
 
-/// `flexid demo`: the whole job on the embedded default plant.
-pub fn demo(a: &DemoArgs) -> Result<(), CliError> {
+/// `flexid demo` without a bus: the plant simulated in-process (`flexid::sim`: exact ZOH,
+/// encoder quantisation, noise), measured and identified.
+pub(crate) fn demo_simulated(a: &DemoArgs) -> Result<(), CliError> {
     let plant = PlantFile::load(a.plant.as_deref()).map_err(CliError::input)?;
     std::fs::create_dir_all(&a.out)
         .map_err(|e| CliError::failed(format!("{}: {e}", a.out.display())))?;

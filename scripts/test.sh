@@ -34,6 +34,7 @@ cargo test --release --workspace 2>&1 | tee target/test-output.txt
 # sees the whole checkout read-only, so a test may start binaries from target/release/.
 VCAN_TESTS=(
     "flexid-can socketcan"
+    "flexid e2e_vcan"
 )
 
 # The release executable of integration test $2 of package $1 (built above: --workspace

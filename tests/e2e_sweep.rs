@@ -227,3 +227,40 @@ fn bus_load_refused_before_touching_the_bus() {
         "{stderr}"
     );
 }
+
+#[test]
+fn ctrl_c_mid_sweep_ramps_down_disables_and_saves() {
+    if !loopback_multicast() {
+        return;
+    }
+    let bus = bus(43225);
+    let _vd = VDrive::start(&bus, &plant_path());
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("interrupted");
+    let (mut child, h) = start_long_sweep(&bus, &out, &[]);
+    let st = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(st.success());
+    let status = wait(&mut child, Duration::from_secs(60));
+    let stderr = h.join().unwrap();
+    assert_eq!(status.code(), Some(1), "{stderr}");
+    let sc = sidecar(&out);
+    assert_eq!(sc["end"]["complete"], false, "{sc}");
+    assert!(
+        sc["end"]["reason"]
+            .as_str()
+            .unwrap()
+            .starts_with("interrupted"),
+        "{sc}"
+    );
+    let n = rows(&out);
+    assert_eq!(sc["end"]["cycle"].as_u64().unwrap() as usize, n);
+    // the ramp to zero ran after the last recorded row, and the drive was disabled
+    assert!(
+        sc["cycle_counters"]["cycles"].as_u64().unwrap() > n as u64,
+        "{sc}"
+    );
+    assert!(stderr.contains("drive disabled"), "{stderr}");
+}

@@ -110,6 +110,17 @@ fn install_signal_handlers() {
     }
 }
 
+/// Back to the default SIGINT/SIGTERM behaviour once the drive is off (Ctrl-C during
+/// the identification ends the program).
+fn restore_signal_handlers() {
+    #[cfg(unix)]
+    // SAFETY: resetting to the default disposition.
+    unsafe {
+        libc::signal(libc::SIGINT, libc::SIG_DFL);
+        libc::signal(libc::SIGTERM, libc::SIG_DFL);
+    }
+}
+
 /// Which bus `--bus` names.
 #[derive(Debug, Clone, PartialEq)]
 pub enum BusSpec {
@@ -413,21 +424,19 @@ pub fn sweep_run(a: &SweepArgs) -> Result<SweepRun, CliError> {
     );
     install_signal_handlers();
     let name = spec.describe();
-    let (mut outcome, drive_info) = match &spec {
-        BusSpec::Udp(cfg) => {
-            let bus = UdpMulticastBus::open(cfg.clone())
-                .map_err(|e| CliError::failed(format!("{name}: {e}")))?;
-            measure(bus, a, &plan, &name, &profiles)?
-        }
+    let measured = match &spec {
+        BusSpec::Udp(cfg) => UdpMulticastBus::open(cfg.clone())
+            .map_err(|e| CliError::failed(format!("{name}: {e}")))
+            .and_then(|bus| measure(bus, a, &plan, &name, &profiles)),
         #[cfg(target_os = "linux")]
-        BusSpec::SocketCan(iface) => {
-            let bus = flexid_can::SocketCanBus::open(iface)
-                .map_err(|e| CliError::failed(format!("{name}: {e}")))?;
-            measure(bus, a, &plan, &name, &profiles)?
-        }
+        BusSpec::SocketCan(iface) => flexid_can::SocketCanBus::open(iface)
+            .map_err(|e| CliError::failed(format!("{name}: {e}")))
+            .and_then(|bus| measure(bus, a, &plan, &name, &profiles)),
         #[cfg(not(target_os = "linux"))]
-        BusSpec::SocketCan(_) => return Err(CliError::input("SocketCAN is Linux only")),
+        BusSpec::SocketCan(_) => Err(CliError::input("SocketCAN is Linux only")),
     };
+    restore_signal_handlers();
+    let (mut outcome, drive_info) = measured?;
     let recording_path = save(&mut outcome, drive_info, &a.out)?;
     if !outcome.complete() {
         return Err(CliError::failed(format!(

@@ -116,6 +116,8 @@ pub struct VirtualDrive<P: Physics> {
     inc_per_rad: f64,
     anchor: Option<Duration>,
     cycles_since_anchor: u64,
+    /// The plant file's cycle rate (0x1006 default) [Hz].
+    base_cycle_hz: f64,
     stats: DriveStats,
 }
 
@@ -128,11 +130,13 @@ impl<P: Physics> VirtualDrive<P> {
                 cycle_hz: cfg.cycle_hz,
             });
         }
-        let slave = Slave::new(defaults(&cfg)).map_err(|source| DriveError::Slave {
+        let mut slave = Slave::new(defaults(&cfg)).map_err(|source| DriveError::Slave {
             node_id: cfg.node_id,
             source,
         })?;
+        slave.set_cycle_adjustable(physics.cycle_adjustable());
         let last = physics.sample();
+        let base_cycle_hz = cfg.cycle_hz;
         Ok(Self {
             ts: 1.0 / cfg.cycle_hz,
             inc_per_rad: f64::from(cfg.encoder_increments_per_rev) / (2.0 * std::f64::consts::PI),
@@ -150,6 +154,7 @@ impl<P: Physics> VirtualDrive<P> {
             last,
             anchor: None,
             cycles_since_anchor: 0,
+            base_cycle_hz,
             stats: DriveStats::default(),
         })
     }
@@ -199,6 +204,10 @@ impl<P: Physics> VirtualDrive<P> {
             SlaveEvent::Reset { communication_only } => {
                 if let Err(e) = self.slave.reset(communication_only) {
                     tracing::error!("reset failed: {e}"); // the defaults built once already
+                }
+                // 0x1006 is back at its default: the plant file's cycle.
+                if self.cfg.cycle_hz != self.base_cycle_hz {
+                    self.change_cycle(self.base_cycle_hz);
                 }
                 if !communication_only {
                     self.reset_application();
@@ -252,7 +261,11 @@ impl<P: Physics> VirtualDrive<P> {
 
     /// When [`VirtualDrive::tick`] next has something to do.
     pub fn next_deadline(&self) -> Option<Duration> {
-        match (self.producer.next_due(), self.consumer.deadline()) {
+        // The consumer only matters while it can fault the drive (else a lost master
+        // would leave a deadline in the past and a runner spinning on it).
+        let supervised = self.fault.is_none() && self.dc.state() == State::OperationEnabled;
+        let consumer = self.consumer.deadline().filter(|_| supervised);
+        match (self.producer.next_due(), consumer) {
             (Some(a), Some(b)) => Some(a.min(b)),
             (a, b) => a.or(b),
         }
@@ -331,7 +344,39 @@ impl<P: Physics> VirtualDrive<P> {
                 .consumer
                 .configure(od::get_u32(self.slave.od(), idx::HB_CONSUMER, 1).unwrap_or(0)),
             idx::MODES => self.publish_status(),
+            idx::CYCLE_PERIOD => {
+                let us = od::get_u32(self.slave.od(), idx::CYCLE_PERIOD, 0).unwrap_or(0);
+                if us != 0 {
+                    let hz = 1e6 / f64::from(us);
+                    if (hz - self.cfg.cycle_hz).abs() > 1e-9 * hz && !self.change_cycle(hz) {
+                        let old = (1e6 / self.cfg.cycle_hz).round() as u32;
+                        od::set(
+                            self.slave.od_mut(),
+                            idx::CYCLE_PERIOD,
+                            Value::Unsigned32(old),
+                        );
+                    }
+                }
+            }
             _ => {}
+        }
+    }
+
+    /// Re-discretises the plant at `hz` (the master's 0x1006); false if it cannot.
+    fn change_cycle(&mut self, hz: f64) -> bool {
+        match self.physics.set_cycle_hz(hz) {
+            Ok(()) => {
+                tracing::info!(from = self.cfg.cycle_hz, to = hz, "cycle rate changed");
+                self.cfg.cycle_hz = hz;
+                self.ts = 1.0 / hz;
+                self.anchor = None;
+                self.cycles_since_anchor = 0;
+                true
+            }
+            Err(e) => {
+                tracing::error!("cycle rate {hz} Hz refused: {e}");
+                false
+            }
         }
     }
 

@@ -54,14 +54,13 @@ pub fn plant_drive(
     cfg.clock = clock;
     #[cfg(feature = "plantsim")]
     if plant.plant.has_effects() {
-        let mut sim = flexid::plant::PlantSim::new(
-            &plant.plant.spec(),
+        let sim = physics::PlantSimPhysics::new(
+            plant.plant.spec(),
             cfg.cycle_hz,
             plant.plant.substeps(),
             seed,
-        )
-        .map_err(|e| BuildError::Plant(e.to_string()))?;
-        sim.set_initial_velocity(plant.plant.measurement.initial_velocity_rad_s);
+            plant.plant.measurement.initial_velocity_rad_s,
+        )?;
         return Ok(VirtualDrive::new(cfg, Box::new(sim) as Box<dyn Physics>)?);
     }
     let _ = seed; // the linear chain is noise-free
@@ -79,7 +78,4 @@ pub enum BuildError {
     /// The drive could not be built.
     #[error("drive: {0}")]
     Drive(#[from] DriveError),
-    /// The nonlinear plant could not be built (`plantsim` feature).
-    #[error("plant: {0}")]
-    Plant(String),
 }

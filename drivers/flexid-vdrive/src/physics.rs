@@ -32,6 +32,15 @@ pub trait Physics: Send {
     fn sample(&mut self) -> AxisSample;
     /// Hold `torque_nm` [N m] on the motor for one cycle and advance to the next instant.
     fn step(&mut self, torque_nm: f64);
+    /// Whether [`Physics::set_cycle_hz`] is supported (the master may then write 0x1006).
+    fn cycle_adjustable(&self) -> bool {
+        false
+    }
+    /// Changes the cycle rate [Hz] (the master's 0x1006), keeping the state where the
+    /// model can. Called at configuration time, never per cycle (may allocate).
+    fn set_cycle_hz(&mut self, cycle_hz: f64) -> Result<(), PhysicsError> {
+        Err(PhysicsError::CycleFixed { cycle_hz })
+    }
 }
 
 impl<P: Physics + ?Sized> Physics for Box<P> {
@@ -40,6 +49,12 @@ impl<P: Physics + ?Sized> Physics for Box<P> {
     }
     fn step(&mut self, torque_nm: f64) {
         (**self).step(torque_nm)
+    }
+    fn cycle_adjustable(&self) -> bool {
+        (**self).cycle_adjustable()
+    }
+    fn set_cycle_hz(&mut self, cycle_hz: f64) -> Result<(), PhysicsError> {
+        (**self).set_cycle_hz(cycle_hz)
     }
 }
 
@@ -61,6 +76,64 @@ impl Physics for flexid::plant::PlantSim {
     }
 }
 
+/// [`flexid::plant::PlantSim`] with what it needs to be rebuilt at another cycle rate (the
+/// master's 0x1006). A rebuild restarts the plant at its initial state (configuration time).
+#[cfg(feature = "plantsim")]
+pub struct PlantSimPhysics {
+    sim: flexid::plant::PlantSim,
+    spec: flexid::plant::PlantSpec,
+    substeps: u32,
+    seed: u64,
+    initial_velocity_rad_s: f64,
+}
+
+#[cfg(feature = "plantsim")]
+impl PlantSimPhysics {
+    /// The plant of `spec` at `cycle_hz`, `substeps` per cycle, noise `seed`, every body
+    /// starting at `initial_velocity_rad_s`.
+    pub fn new(
+        spec: flexid::plant::PlantSpec,
+        cycle_hz: f64,
+        substeps: u32,
+        seed: u64,
+        initial_velocity_rad_s: f64,
+    ) -> Result<Self, PhysicsError> {
+        let mut sim = flexid::plant::PlantSim::new(&spec, cycle_hz, substeps, seed)
+            .map_err(|e| PhysicsError::Plant(e.to_string()))?;
+        sim.set_initial_velocity(initial_velocity_rad_s);
+        Ok(Self {
+            sim,
+            spec,
+            substeps,
+            seed,
+            initial_velocity_rad_s,
+        })
+    }
+}
+
+#[cfg(feature = "plantsim")]
+impl Physics for PlantSimPhysics {
+    fn sample(&mut self) -> AxisSample {
+        Physics::sample(&mut self.sim)
+    }
+    fn step(&mut self, torque_nm: f64) {
+        self.sim.step(torque_nm)
+    }
+    fn cycle_adjustable(&self) -> bool {
+        true
+    }
+    fn set_cycle_hz(&mut self, cycle_hz: f64) -> Result<(), PhysicsError> {
+        *self = Self::new(
+            self.spec.clone(),
+            cycle_hz,
+            self.substeps,
+            self.seed,
+            self.initial_velocity_rad_s,
+        )?;
+        Ok(())
+    }
+}
+
 /// Errors of the physics layer.
 #[derive(Debug, thiserror::Error)]
 pub enum PhysicsError {
@@ -73,6 +146,15 @@ pub enum PhysicsError {
         /// The rejected rate [Hz].
         cycle_hz: f64,
     },
+    /// The model cannot change its cycle rate.
+    #[error("this plant model cannot change its cycle rate (to {cycle_hz} Hz)")]
+    CycleFixed {
+        /// The requested rate [Hz].
+        cycle_hz: f64,
+    },
+    /// The main crate's nonlinear plant could not be built.
+    #[error("plant: {0}")]
+    Plant(String),
 }
 
 /// An n-mass chain advanced exactly under ZOH, `x[k+1] = Ad x[k] + Bd T[k]`, with the
@@ -80,6 +162,7 @@ pub enum PhysicsError {
 /// `flexid::sim::simulate_position` uses). State `[theta_1..theta_n, omega_1..omega_n]`.
 #[derive(Debug, Clone)]
 pub struct LinearChain {
+    chain: Chain,
     n: usize,
     ts: f64,
     /// `Ad`, row-major, `2n x 2n`.
@@ -110,6 +193,7 @@ impl LinearChain {
             }
         }
         Ok(Self {
+            chain: chain.clone(),
             n,
             ts,
             ad,
@@ -144,6 +228,21 @@ impl Physics for LinearChain {
             torque_nm: self.last_torque_nm,
             load_position_rad: self.x[self.n - 1],
         }
+    }
+
+    fn cycle_adjustable(&self) -> bool {
+        true
+    }
+
+    /// Re-discretises at `cycle_hz`, keeping the state (angles, velocities) and the time.
+    fn set_cycle_hz(&mut self, cycle_hz: f64) -> Result<(), PhysicsError> {
+        let time_s = self.cycles as f64 * self.ts;
+        let mut fresh = LinearChain::new(&self.chain, cycle_hz)?;
+        fresh.x.copy_from_slice(&self.x);
+        fresh.cycles = (time_s / fresh.ts).round() as u64;
+        fresh.last_torque_nm = self.last_torque_nm;
+        *self = fresh;
+        Ok(())
     }
 
     fn step(&mut self, torque_nm: f64) {

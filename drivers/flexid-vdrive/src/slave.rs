@@ -39,6 +39,11 @@ pub mod abort {
     pub const DEVICE_STATE: u32 = 0x0800_0022;
 }
 
+/// Shortest cycle period the master may set in 0x1006 [µs].
+pub const MIN_CYCLE_US: u32 = 50;
+/// Longest cycle period the master may set in 0x1006 [µs].
+pub const MAX_CYCLE_US: u32 = 1_000_000;
+
 /// What a received frame meant to the slave (for the drive core).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum SlaveEvent {
@@ -60,6 +65,7 @@ pub struct Slave {
     node: Node<OD_CAPACITY>,
     defaults: OdDefaults,
     sync_count: [u8; od::TPDOS as usize],
+    cycle_adjustable: bool,
 }
 
 /// Errors of the slave layer.
@@ -86,7 +92,14 @@ impl Slave {
             node,
             defaults,
             sync_count: [0; od::TPDOS as usize],
+            cycle_adjustable: false,
         })
+    }
+
+    /// Whether the master may write 0x1006 with another cycle period (50 µs ..= 1 s); else
+    /// only 0 or the current value are accepted.
+    pub fn set_cycle_adjustable(&mut self, yes: bool) {
+        self.cycle_adjustable = yes;
     }
 
     /// Node id.
@@ -104,6 +117,7 @@ impl Slave {
     /// everything to its defaults. The slave is left in Initialising: call [`Slave::boot`].
     pub fn reset(&mut self, communication_only: bool) -> Result<(), SlaveError> {
         let mut fresh = Slave::new(self.defaults)?;
+        fresh.cycle_adjustable = self.cycle_adjustable;
         if communication_only {
             for index in [
                 idx::CONTROLWORD,
@@ -323,7 +337,11 @@ impl Slave {
                 (!crate::cia402::mode::supported(v as u8 as i8)).then_some(abort::VALUE_RANGE)
             }
             idx::CYCLE_PERIOD => {
-                (v != 0 && v != self.defaults.cycle_us).then_some(abort::VALUE_RANGE)
+                let current = od::get_u32(od, idx::CYCLE_PERIOD, 0).unwrap_or(0);
+                let ok = v == 0
+                    || v == current
+                    || (self.cycle_adjustable && (MIN_CYCLE_US..=MAX_CYCLE_US).contains(&v));
+                (!ok).then_some(abort::VALUE_RANGE)
             }
             idx::SYNC_COB_ID => (v & !0x8000_07FF != 0).then_some(abort::VALUE_RANGE),
             i if (idx::RPDO_COMM..idx::RPDO_COMM + od::RPDOS).contains(&i)

@@ -228,6 +228,8 @@ fn heartbeat_loss_outside_operation_enabled_is_no_fault() {
     d.rpdo(0x0006, 0);
     d.run_for(ms(200));
     assert_eq!(d.drive.state(), State::ReadyToSwitchOn);
+    // No deadline in the past for a runner to spin on.
+    assert!(d.drive.next_deadline().is_none_or(|t| t > d.now));
     // Enabling with the master's heartbeat still missing faults at the next tick.
     d.rpdo(0x000F, 0);
     assert_eq!(d.run_for(ms(1)).len(), 1);

@@ -134,3 +134,52 @@ fn realtime_clock_integrates_whole_elapsed_cycles() {
         );
     }
 }
+
+#[test]
+fn master_sets_the_cycle_period_and_the_plant_follows() {
+    // The master writes 0x1006 = 1000 us (1 kHz) while the plant file says 2 kHz.
+    let p = plant("");
+    let chain = p.plant.chain.clone();
+    let mut d = Dut::with(&p);
+    d.sdo_ok([0x23, 0x06, 0x10, 0x00, 0xE8, 0x03, 0x00, 0x00]);
+    assert_eq!(
+        d.sdo([0x40, 0x06, 0x10, 0x00, 0, 0, 0, 0]),
+        [0x43, 0x06, 0x10, 0x00, 0xE8, 0x03, 0x00, 0x00]
+    );
+    // Out of range (10 us): 0x06090030.
+    assert_eq!(
+        d.sdo([0x23, 0x06, 0x10, 0x00, 0x0A, 0x00, 0x00, 0x00]),
+        [0x80, 0x06, 0x10, 0x00, 0x30, 0x00, 0x09, 0x06]
+    );
+    d.start();
+    d.rpdo(0x0006, 0);
+    d.rpdo(0x0007, 0);
+    let permille: Vec<i16> = (0..500).map(|k| ((k * 37 % 200) as i16) - 60).collect();
+    let mut got = Vec::new();
+    for &t in &permille {
+        d.rpdo(0x000F, t);
+        let out = d.sync();
+        let f = out.iter().find(|f| f.id().raw() == 0x185).unwrap();
+        got.push(i32::from_le_bytes(f.data()[2..6].try_into().unwrap()));
+    }
+    let torque: Vec<f64> = permille.iter().map(|&t| f64::from(t) / 1000.0).collect();
+    let opts = flexid::sim::SimOptions {
+        sample_rate_hz: 1000.0,
+        ..Default::default()
+    };
+    let want = flexid::sim::simulate_position(&chain, &torque, &opts).unwrap();
+    let inc = f64::from(1u32 << 20) / (2.0 * std::f64::consts::PI);
+    for k in 0..torque.len() {
+        assert!(
+            (f64::from(got[k]) - want[k] * inc).abs() <= 0.5 + 1e-6,
+            "sample {k}"
+        );
+    }
+    // Reset communication restores the plant file's 500 us.
+    d.send(0x000, &[0x82, 0x05]);
+    assert_eq!(
+        d.sdo([0x40, 0x06, 0x10, 0x00, 0, 0, 0, 0]),
+        [0x43, 0x06, 0x10, 0x00, 0xF4, 0x01, 0x00, 0x00]
+    );
+    assert_eq!(d.drive.config().cycle_hz, 2000.0);
+}

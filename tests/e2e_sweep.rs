@@ -160,7 +160,7 @@ fn drive_killed_mid_sweep_keeps_the_partial_recording() {
     let reason = end["reason"].as_str().unwrap();
     assert!(reason.starts_with("feedback lost"), "{reason}");
     let n = rows(&out);
-    assert!(n >= 2000 && n < 41 * 2000, "{n} rows");
+    assert!((2000..41 * 2000).contains(&n), "{n} rows");
     assert_eq!(end["cycle"].as_u64().unwrap() as usize, n, "{sc}");
     assert!(stderr.contains("sweep stopped at cycle"), "{stderr}");
     assert!(!out.join("result.json").exists());

@@ -218,7 +218,7 @@ pub fn plan(a: &SweepArgs) -> Result<SweepPlan, CliError> {
             a.peak_nm
         )));
     }
-    if !(a.max_speed_rad_s > 0.0) {
+    if !(a.max_speed_rad_s.is_finite() && a.max_speed_rad_s > 0.0) {
         return Err(CliError::input("--max-speed-rad-s must be positive"));
     }
     let band = match &a.band {

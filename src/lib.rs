@@ -19,6 +19,8 @@
 //!   effects (friction, backlash, delay, current loop, ...), a fine-step simulator.
 //! * [`rt`]: the real-time cycle thread (absolute-deadline pacing, `SCHED_FIFO`/`mlockall`
 //!   when granted, timing statistics).
+//! * [`sweep`]: one measurement on a drive in cyclic synchronous torque (any
+//!   `flexid_canopen::CyclicDrive`): the run loop, its limits and how it ended.
 //!
 //! Conventions: SI units throughout (kg m^2, N m/rad, N m s/rad, rad, rad/s, Hz, s). The
 //! plant is the motor mobility: motor torque -> motor angular velocity. Body 1 is the motor.
@@ -35,5 +37,6 @@ pub mod plot;
 pub mod recording;
 pub mod rt;
 pub mod sim;
+pub mod sweep;
 
 pub use num_complex::Complex64;

@@ -29,6 +29,11 @@ pub struct PlantFile {
     /// Unmodelled effects; all off when the section is absent.
     #[serde(default)]
     pub effects: Effects,
+    /// The `[drive]` section of `flexid-vdrive` (the simulated CiA 402 drive in front of
+    /// the plant: node, rated torque, limits, encoder); read and checked by flexid-vdrive,
+    /// carried along here.
+    #[serde(default)]
+    pub drive: Option<toml::Table>,
 }
 
 /// How the plant is measured.

@@ -123,13 +123,37 @@ impl CanBus for SocketCanBus {
     }
 
     fn recv_timeout(&mut self, timeout: Duration) -> Result<Option<Received>, BusError> {
-        // SO_RCVTIMEO of zero means "forever": poll with the shortest timeout instead.
-        let t = timeout.max(Duration::from_micros(1));
-        if self.timeout != Some(t) {
+        // Wait with ppoll(2): a zero timeout returns at once and short ones are kept to
+        // the microsecond. (SO_RCVTIMEO rounds up to a scheduler tick, 4 ms at HZ=250:
+        // a "non-blocking" drain before every SYNC would cost a tick per cycle.)
+        if self.timeout.is_none() {
+            // guard for a spurious wake-up: the read below then gives up after 1 ms
+            let t = Duration::from_millis(1);
             self.socket
                 .set_read_timeout(t)
                 .map_err(|e| self.io("receive", e))?;
             self.timeout = Some(t);
+        }
+        let mut pfd = libc::pollfd {
+            fd: std::os::fd::AsRawFd::as_raw_fd(&self.socket),
+            events: libc::POLLIN,
+            revents: 0,
+        };
+        let ts = libc::timespec {
+            tv_sec: timeout.as_secs().min(i32::MAX as u64) as libc::time_t,
+            tv_nsec: timeout.subsec_nanos() as libc::c_long,
+        };
+        // SAFETY: one valid pollfd, a valid timespec, no signal mask.
+        let ready = unsafe { libc::ppoll(&mut pfd, 1, &ts, std::ptr::null()) };
+        if ready < 0 {
+            let e = io::Error::last_os_error();
+            if e.kind() == io::ErrorKind::Interrupted {
+                return Ok(None);
+            }
+            return Err(self.io("receive", e));
+        }
+        if ready == 0 {
+            return Ok(None);
         }
         let raw = match self.socket.read_raw_frame() {
             Ok(raw) => raw,

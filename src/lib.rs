@@ -15,12 +15,14 @@
 //! * [`plot`]: Bode plots as SVG.
 //! * [`import`]: MAT v5 and DaISy files into recordings.
 //! * [`sim`]: simulated recordings of chains (exact ZOH sampling, noise, quantisation).
+//! * [`daemon`]: `flexid daemon`, the identification service (HTTP API, results store, MQTT).
 //!
 //! Conventions: SI units throughout (kg m^2, N m/rad, N m s/rad, rad, rad/s, Hz, s). The
 //! plant is the motor mobility: motor torque -> motor angular velocity. Body 1 is the motor.
 
 pub mod analysis;
 pub mod cli;
+pub mod daemon;
 pub mod excitation;
 pub mod frf;
 pub mod identify;

@@ -37,6 +37,15 @@ pub enum Command {
     Demo(DemoArgs),
     /// Convert a measurement file (MAT v5, DaISy ASCII, or a named preset) to a recording.
     Import(ImportArgs),
+    /// The identification service: HTTP API, results store, MQTT (runs until SIGTERM).
+    Daemon(DaemonArgs),
+}
+
+#[derive(Debug, Args)]
+pub struct DaemonArgs {
+    /// The configuration file (TOML).
+    #[arg(long, default_value = "/etc/flexid/flexid.toml")]
+    pub config: PathBuf,
 }
 
 /// Options shared by the commands that identify.
@@ -176,5 +185,9 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
         Command::Simulate(a) => commands::simulate(&a),
         Command::Demo(a) => commands::demo(&a),
         Command::Import(a) => commands::import(&a),
+        Command::Daemon(a) => crate::daemon::run(&a.config).map_err(|e| CliError {
+            message: e.to_string(),
+            code: e.exit_code(),
+        }),
     }
 }

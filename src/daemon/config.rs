@@ -232,23 +232,16 @@ impl Config {
         let de = toml::Deserializer::parse(text).map_err(|e| ConfigError::Parse {
             file: file.into(),
             key: String::new(),
-            message: one_line(&e.to_string()),
+            message: describe(&e, text),
         })?;
         let cfg: Config = serde_path_to_error::deserialize(de).map_err(|e| {
             let key = e.path().to_string();
-            let message = one_line(&e.inner().to_string());
+            let message = describe(e.inner(), text);
+            let top = key == "." || key.is_empty();
             ConfigError::Parse {
                 file: file.into(),
-                key: if key == "." {
-                    String::new()
-                } else {
-                    key.clone()
-                },
-                message: if key == "." {
-                    message
-                } else {
-                    format!(": {message}")
-                },
+                key: if top { String::new() } else { key },
+                message: if top { message } else { format!(": {message}") },
             }
         })?;
         cfg.validate(file)?;
@@ -387,8 +380,18 @@ fn display_name(path: &Path) -> String {
         .unwrap_or_else(|| path.display().to_string())
 }
 
-fn one_line(s: &str) -> String {
-    s.split_whitespace().collect::<Vec<_>>().join(" ")
+/// The error's message on one line, with the line and column of its span.
+fn describe(e: &toml::de::Error, text: &str) -> String {
+    let msg = e.message().split_whitespace().collect::<Vec<_>>().join(" ");
+    match e.span() {
+        Some(span) => {
+            let before = &text.as_bytes()[..span.start.min(text.len())];
+            let line = before.iter().filter(|&&b| b == b'\n').count() + 1;
+            let col = before.iter().rev().take_while(|&&b| b != b'\n').count() + 1;
+            format!("{msg} (line {line}, column {col})")
+        }
+        None => msg,
+    }
 }
 
 #[cfg(test)]

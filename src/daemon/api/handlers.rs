@@ -77,19 +77,33 @@ pub async fn abort(State(svc): Svc, Path(id): Path<String>) -> Result<Response, 
         .into_response())
 }
 
-/// `GET /api/v1/sweeps/{id}/{recording.csv|recording.json|frf.csv|bode.svg}`.
-pub async fn sweep_file(
+/// `GET /api/v1/sweeps/{id}/recording.csv`.
+pub async fn recording_csv(s: Svc, id: Path<String>) -> Result<Response, ApiError> {
+    sweep_file(s, id, store::RECORDING_CSV, "text/csv").await
+}
+
+/// `GET /api/v1/sweeps/{id}/recording.json`.
+pub async fn recording_json(s: Svc, id: Path<String>) -> Result<Response, ApiError> {
+    sweep_file(s, id, store::RECORDING_JSON, "application/json").await
+}
+
+/// `GET /api/v1/sweeps/{id}/frf.csv`.
+pub async fn frf_csv(s: Svc, id: Path<String>) -> Result<Response, ApiError> {
+    sweep_file(s, id, store::FRF_CSV, "text/csv").await
+}
+
+/// `GET /api/v1/sweeps/{id}/bode.svg`.
+pub async fn bode_svg(s: Svc, id: Path<String>) -> Result<Response, ApiError> {
+    sweep_file(s, id, store::BODE_SVG, "image/svg+xml").await
+}
+
+async fn sweep_file(
     State(svc): Svc,
-    Path((id, file)): Path<(String, String)>,
+    Path(id): Path<String>,
+    name: &str,
+    mime: &'static str,
 ) -> Result<Response, ApiError> {
     check_id(&id)?;
-    let (name, mime) = match file.as_str() {
-        "recording.csv" => (store::RECORDING_CSV, "text/csv"),
-        "recording.json" => (store::RECORDING_JSON, "application/json"),
-        "frf.csv" => (store::FRF_CSV, "text/csv"),
-        "bode.svg" => (store::BODE_SVG, "image/svg+xml"),
-        _ => return Err(ApiError::new(StatusCode::NOT_FOUND, "no such route")),
-    };
     let dir = svc
         .sweep_dir(&id)
         .ok_or_else(|| ApiError::new(StatusCode::NOT_FOUND, format!("no sweep with id {id:?}")))?;

@@ -42,7 +42,10 @@ pub fn router(svc: Arc<Service>) -> Router {
         .route("/api/v1/sweeps/{id}", get(h::sweep_status))
         .route("/api/v1/sweeps/{id}/events", get(sse::events))
         .route("/api/v1/sweeps/{id}/abort", post(h::abort))
-        .route("/api/v1/sweeps/{id}/{file}", get(h::sweep_file))
+        .route("/api/v1/sweeps/{id}/recording.csv", get(h::recording_csv))
+        .route("/api/v1/sweeps/{id}/recording.json", get(h::recording_json))
+        .route("/api/v1/sweeps/{id}/frf.csv", get(h::frf_csv))
+        .route("/api/v1/sweeps/{id}/bode.svg", get(h::bode_svg))
         .fallback(|| async { ApiError::new(StatusCode::NOT_FOUND, "no such route") })
         .layer(axum::extract::DefaultBodyLimit::max(BODY_LIMIT))
         .layer(tower_http::limit::RequestBodyLimitLayer::new(BODY_LIMIT))
@@ -84,4 +87,49 @@ async fn json_413(r: Response) -> Response {
         .into_response();
     }
     r
+}
+
+#[cfg(test)]
+mod tests {
+    use super::ROUTES;
+
+    /// The `.route(PATH, METHOD(...))` calls of [`super::router`], from this file's source.
+    fn routes_in_router() -> Vec<(String, String)> {
+        let src = include_str!("mod.rs");
+        let body = &src[src.find("pub fn router").unwrap()..src.find("async fn auth").unwrap()];
+        body.split(".route(\"")
+            .skip(1)
+            .map(|r| {
+                let path = r[..r.find('"').unwrap()].to_string();
+                let rest = &r[r.find(", ").unwrap() + 2..];
+                let method = rest[..rest.find('(').unwrap()].to_string();
+                (method, path)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn every_route_is_listed_and_documented() {
+        let router = routes_in_router();
+        assert_eq!(router.len(), ROUTES.len(), "{router:?}");
+        for (m, p) in &router {
+            assert!(
+                ROUTES.contains(&(m.as_str(), p.as_str())),
+                "{m} {p} not in ROUTES"
+            );
+        }
+        let spec = include_str!("../../../docs/openapi.yaml");
+        assert!(spec.starts_with("openapi: 3.1"));
+        for (method, path) in ROUTES {
+            let start = spec
+                .find(&format!("\n  {path}:\n"))
+                .unwrap_or_else(|| panic!("{path} is not in docs/openapi.yaml"));
+            let block = &spec[start + path.len() + 4..];
+            let end = block.find("\n  /").unwrap_or(block.len());
+            assert!(
+                block[..end].contains(&format!("\n    {method}:")),
+                "{method} {path} is not in docs/openapi.yaml"
+            );
+        }
+    }
 }

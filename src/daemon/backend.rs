@@ -100,7 +100,9 @@ pub enum SweepEvent {
     /// Period `index` (0-based, transient periods included) is complete.
     Period {
         index: usize,
-        /// The period's raw samples.
+        /// The period's raw samples, contiguous with the previous block. A backend that
+        /// cannot stream rows sends an empty block; the daemon then writes the rows from
+        /// the final recording (and a crash loses the whole sweep's data).
         samples: SampleBlock,
         /// The FRF estimate over the steady periods so far (`None` during the transient).
         frf_so_far: Option<Arc<Frf>>,

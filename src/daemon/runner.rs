@@ -45,8 +45,15 @@ pub(crate) fn run(mut job: Job) {
                 elapsed_s,
                 counters,
             }) => {
-                samples = block.first_sample + block.torque_cmd_nm.len();
-                if let Err(e) = job.files.append(&block, job.sample_rate_hz) {
+                let appended = if block.torque_cmd_nm.is_empty() || block.first_sample != samples {
+                    // a backend that does not stream rows (or skipped some): the rows come
+                    // with the final recording
+                    Ok(())
+                } else {
+                    samples = block.first_sample + block.torque_cmd_nm.len();
+                    job.files.append(&block, job.sample_rate_hz)
+                };
+                if let Err(e) = appended {
                     // the data cannot be kept: stop the motor rather than run blind
                     tracing::error!("sweep {id}: {e}; aborting");
                     job.hub.abort.abort("results store failed");
@@ -91,6 +98,23 @@ pub(crate) fn run(mut job: Job) {
         }
     };
     let (outcome, mut reason, recording) = ended;
+    // rows the backend did not stream: append them from the final recording
+    if let Some(rec) = &recording {
+        if let Some(pos) = &rec.position_rad {
+            let n = rec.len().min(pos.len());
+            if n > samples {
+                let block = super::backend::SampleBlock {
+                    first_sample: samples,
+                    torque_cmd_nm: rec.torque_cmd_nm[samples..n].to_vec(),
+                    position_rad: pos[samples..n].to_vec(),
+                };
+                match job.files.append(&block, job.sample_rate_hz) {
+                    Ok(()) => samples = n,
+                    Err(e) => tracing::error!("sweep {id}: {e}"),
+                }
+            }
+        }
+    }
     if let Some(e) = store_failed {
         reason = format!("{reason} (results store: {e})");
     }

@@ -44,13 +44,16 @@ cargo test --release --workspace 2>&1 | tee target/test-output.txt
 # sees the whole checkout read-only, so a test may start binaries from target/release/.
 VCAN_TESTS=(
     "flexid-can socketcan"
+    "flexid e2e_vcan"
 )
 
 # The release executable of integration test $2 of package $1 (built above: --workspace
-# keeps the features, hence the file, of the build stage).
+# keeps the features, hence the file, of the build stage); the test target only, not the
+# package's binaries built beside it.
 test_binary() {
     cargo test --release --workspace --test "$2" --no-run --message-format=json 2>/dev/null |
         grep -E "\"package_id\":\"[^\"]*[/#]$1[#@]" |
+        grep -F '"kind":["test"]' | grep -F "\"name\":\"$2\"" |
         sed -n 's/.*"executable":"\([^"]*\)".*/\1/p' | head -1 || true
 }
 

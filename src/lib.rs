@@ -16,6 +16,8 @@
 //! * [`import`]: MAT v5 and DaISy files into recordings.
 //! * [`sim`]: simulated recordings of chains (exact ZOH sampling, noise, quantisation).
 //! * [`daemon`]: `flexid daemon`, the identification service (HTTP API, results store, MQTT).
+//! * [`sweep`]: one measurement on a drive in cyclic synchronous torque (any
+//!   `flexid_canopen::CyclicDrive`): the run loop, its limits and how it ended.
 //!
 //! Conventions: SI units throughout (kg m^2, N m/rad, N m s/rad, rad, rad/s, Hz, s). The
 //! plant is the motor mobility: motor torque -> motor angular velocity. Body 1 is the motor.
@@ -31,5 +33,6 @@ pub mod model;
 pub mod plot;
 pub mod recording;
 pub mod sim;
+pub mod sweep;
 
 pub use num_complex::Complex64;

@@ -193,7 +193,8 @@ fn notifies_systemd_ready_watchdog_and_stopping() {
     let cfg = write_config(tmp.path(), "");
     let sock_path = tmp.path().join("notify.sock");
     let sock = UnixDatagram::bind(&sock_path).unwrap();
-    sock.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
+    sock.set_read_timeout(Some(Duration::from_secs(10)))
+        .unwrap();
     let mut child = Command::new(BIN)
         .args(["daemon", "--config"])
         .arg(&cfg)
@@ -211,13 +212,24 @@ fn notifies_systemd_ready_watchdog_and_stopping() {
     let mut buf = [0u8; 512];
     let mut got = Vec::new();
     let t0 = std::time::Instant::now();
-    while got.iter().filter(|m: &&String| m.contains("WATCHDOG=1")).count() < 3 {
+    while got
+        .iter()
+        .filter(|m: &&String| m.contains("WATCHDOG=1"))
+        .count()
+        < 3
+    {
         let n = sock.recv(&mut buf).expect("a notification");
         got.push(String::from_utf8_lossy(&buf[..n]).into_owned());
         assert!(t0.elapsed() < Duration::from_secs(5), "{got:?}");
     }
     assert!(got[0].contains("READY=1"), "{got:?}");
-    assert!(got[0].contains(&format!("STATUS=API on {}", line.trim().rsplit(' ').next().unwrap())), "{got:?}");
+    assert!(
+        got[0].contains(&format!(
+            "STATUS=API on {}",
+            line.trim().rsplit(' ').next().unwrap()
+        )),
+        "{got:?}"
+    );
     // three pings at 100 ms (half of WATCHDOG_USEC) take about 0.2 s
     assert!(t0.elapsed() < Duration::from_secs(2));
     let pid = child.id().to_string();

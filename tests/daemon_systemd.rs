@@ -47,7 +47,11 @@ fn unit_has_the_hardening_and_notify_settings() {
 
 #[test]
 fn systemd_analyze_verify_accepts_the_unit() {
-    if Command::new("systemd-analyze").arg("--version").output().is_err() {
+    if Command::new("systemd-analyze")
+        .arg("--version")
+        .output()
+        .is_err()
+    {
         eprintln!("skipped: systemd-analyze is not installed");
         return;
     }
@@ -70,6 +74,9 @@ fn systemd_analyze_verify_accepts_the_unit() {
     );
     assert!(out.status.success(), "{text}");
     // unknown keys or bad values are only warnings: fail on any remark about the file
-    let remarks: Vec<&str> = text.lines().filter(|l| l.contains("flexid.service")).collect();
+    let remarks: Vec<&str> = text
+        .lines()
+        .filter(|l| l.contains("flexid.service"))
+        .collect();
     assert!(remarks.is_empty(), "{}", remarks.join("\n"));
 }

@@ -12,7 +12,7 @@ use crate::recording::{
 };
 use std::path::Path;
 
-fn options(m: &ModelArgs) -> Result<AnalysisOptions, CliError> {
+pub(crate) fn options(m: &ModelArgs) -> Result<AnalysisOptions, CliError> {
     let band_hz = match &m.band {
         None => None,
         Some(b) if b.len() == 2 && b[0] >= 0.0 && b[1] > b[0] && b[1].is_finite() => {
@@ -39,7 +39,7 @@ fn load(path: &Path) -> Result<Recording, CliError> {
     read_recording(path).map_err(|e| CliError::input(e.to_string()))
 }
 
-fn run_analysis(rec: &Recording, opts: &AnalysisOptions) -> Result<Analysis, CliError> {
+pub(crate) fn run_analysis(rec: &Recording, opts: &AnalysisOptions) -> Result<Analysis, CliError> {
     eprintln!(
         "flexid: {} samples at {} Hz; estimating the FRF and identifying ({} starts per order) ...",
         rec.len(),
@@ -92,13 +92,13 @@ fn bode_plot<'a>(a: &'a Analysis, title: &str) -> BodePlot<'a> {
     ))
 }
 
-fn write_svg(a: &Analysis, title: &str, out: &Path) -> Result<(), CliError> {
+pub(crate) fn write_svg(a: &Analysis, title: &str, out: &Path) -> Result<(), CliError> {
     bode_plot(a, title)
         .write_svg(out)
         .map_err(|e| CliError::failed(format!("{}: {e}", out.display())))
 }
 
-fn write_json(a: &Analysis, out: &Path) -> Result<(), CliError> {
+pub(crate) fn write_json(a: &Analysis, out: &Path) -> Result<(), CliError> {
     let text =
         serde_json::to_string_pretty(&to_json(a)).map_err(|e| CliError::failed(e.to_string()))?;
     write_bytes_atomic(out, text.as_bytes())
@@ -210,8 +210,9 @@ fn demo_excitation(plant: &PlantFile) -> Result<Excitation, CliError> {
     })
 }
 
-/// `flexid demo`: the whole job on the embedded default plant.
-pub fn demo(a: &DemoArgs) -> Result<(), CliError> {
+/// `flexid demo` without a bus: the plant simulated in-process (`flexid::sim`: exact ZOH,
+/// encoder quantisation, noise), measured and identified.
+pub(crate) fn demo_simulated(a: &DemoArgs) -> Result<(), CliError> {
     let plant = PlantFile::load(a.plant.as_deref()).map_err(CliError::input)?;
     std::fs::create_dir_all(&a.out)
         .map_err(|e| CliError::failed(format!("{}: {e}", a.out.display())))?;

@@ -107,7 +107,7 @@ pub struct Excitation {
 }
 
 /// Generate the excitation the arguments describe.
-pub fn generate(a: &ExciteArgs) -> Result<Excitation, CliError> {
+pub(crate) fn generate(a: &ExciteArgs) -> Result<Excitation, CliError> {
     let rms = a.rms_nm.unwrap_or(a.peak_nm);
     let bad = |e: crate::excitation::ExcitationError| CliError::input(format!("excitation: {e}"));
     Ok(match &a.kind {

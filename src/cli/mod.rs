@@ -5,10 +5,13 @@
 //! * `flexid identify REC.csv [--masses N] [--json OUT.json]`
 //! * `flexid bode REC.csv --out bode.svg`
 //! * `flexid excite multisine|chirp|stepped ... --out EXC.csv`
+//! * `flexid sweep --bus udp[:GROUP[:PORT]]|vcan0|socketcan:IFACE --node 5 ...` (see [`sweep::SweepArgs`])
 
 mod commands;
+mod demo;
 mod excite;
 pub mod plant;
+pub mod sweep;
 
 use clap::{Args, Parser, Subcommand};
 use std::path::PathBuf;
@@ -33,10 +36,13 @@ pub enum Command {
     Excite(excite::ExciteArgs),
     /// Simulate a recording of a plant file driven by an excitation file.
     Simulate(SimulateArgs),
-    /// The whole job on the embedded default: excite, measure the simulated plant, identify, plot.
+    /// The whole job on the embedded default: the simulated drive (flexid-vdrive) on the
+    /// user-space CAN bus, `flexid sweep` against it, identify, compare with the plant, plot.
     Demo(DemoArgs),
     /// Convert a measurement file (MAT v5, DaISy ASCII, or a named preset) to a recording.
     Import(ImportArgs),
+    /// One measurement on one axis over CAN: bring-up, excite, record, identify.
+    Sweep(sweep::SweepArgs),
     /// The identification service: HTTP API, results store, MQTT (runs until SIGTERM).
     Daemon(DaemonArgs),
 }
@@ -183,8 +189,9 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
         Command::Bode(a) => commands::bode(&a),
         Command::Excite(a) => excite::excite(&a),
         Command::Simulate(a) => commands::simulate(&a),
-        Command::Demo(a) => commands::demo(&a),
+        Command::Demo(a) => demo::demo(&a),
         Command::Import(a) => commands::import(&a),
+        Command::Sweep(a) => sweep::sweep(&a),
         Command::Daemon(a) => crate::daemon::run(&a.config).map_err(|e| CliError {
             message: e.to_string(),
             code: e.exit_code(),

@@ -17,6 +17,11 @@ pub struct PlantFile {
     pub chain: Chain,
     #[serde(default)]
     pub measurement: Measurement,
+    /// The `[drive]` section of `flexid-vdrive` (the simulated CiA 402 drive in front of
+    /// the plant: node, rated torque, limits, encoder); read and checked by flexid-vdrive,
+    /// carried along here.
+    #[serde(default)]
+    pub drive: Option<toml::Table>,
 }
 
 /// How the plant is measured.

@@ -240,6 +240,16 @@ impl Run {
             io_delay_samples: Some(0),
             source: Some(format!("simulated: {} (daemon sim backend)", self.sim.name)),
             ended_because: (outcome != Outcome::Completed).then(|| reason.clone()),
+            end: Some(crate::recording::RecordingEnd {
+                complete: outcome == Outcome::Completed,
+                reason: reason.clone(),
+                cycle: counters.cycles,
+            }),
+            cycle_counters: Some(crate::recording::CycleCounters {
+                cycles: counters.cycles,
+                ..Default::default()
+            }),
+            drive: None,
         };
         let recording = Recording {
             time_s: rec_t,
@@ -247,6 +257,7 @@ impl Run {
             position_rad: Some(rec_p),
             velocity_rad_s: None,
             acceleration_rad_s2: None,
+            torque_actual_nm: None,
             sample_rate_hz: fs,
             sidecar,
         };

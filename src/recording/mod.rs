@@ -30,7 +30,7 @@ pub use read::{
     parse_recording, parse_sidecar, read_recording, read_recording_from, read_recording_report,
     sidecar_path, ReadReport, COLUMNS, TIME_STEP_TOLERANCE,
 };
-pub use types::{MotionSignal, Recording, Sidecar};
+pub use types::{CycleCounters, DriveInfo, MotionSignal, Recording, RecordingEnd, Sidecar};
 pub use write::write_recording;
 
 #[cfg(test)]

@@ -11,18 +11,20 @@ use std::path::{Path, PathBuf};
 pub const TIME_STEP_TOLERANCE: f64 = 0.01;
 
 /// Column names of `REC.csv`, in the order the writer uses.
-pub const COLUMNS: [&str; 5] = [
+pub const COLUMNS: [&str; 6] = [
     "time_s",
     "torque_cmd_nm",
     "position_rad",
     "velocity_rad_s",
     "acceleration_rad_s2",
+    "torque_actual_nm",
 ];
 const TIME: usize = 0;
 const TORQUE: usize = 1;
 const POS: usize = 2;
 const VEL: usize = 3;
 const ACC: usize = 4;
+const TACT: usize = 5;
 
 /// A recording as read, with the warnings collected on the way.
 #[derive(Debug, Clone, PartialEq)]
@@ -129,8 +131,8 @@ pub fn read_recording_from<R: BufRead>(
     let mut line_no = 0usize;
     let mut ncols = 0usize;
     let mut slot_of_field: Vec<Option<usize>> = Vec::new();
-    let mut present = [false; 5];
-    let mut cols: [Vec<f64>; 5] = Default::default();
+    let mut present = [false; 6];
+    let mut cols: [Vec<f64>; 6] = Default::default();
     let mut lines: Vec<usize> = Vec::new();
     let mut have_header = false;
 
@@ -205,7 +207,7 @@ pub fn read_recording_from<R: BufRead>(
             continue;
         }
         // Data row.
-        let mut vals = [0.0_f64; 5];
+        let mut vals = [0.0_f64; 6];
         let mut got = 0usize;
         let mut first_err: Option<RecordingError> = None;
         for field in t.split(',') {
@@ -232,7 +234,7 @@ pub fn read_recording_from<R: BufRead>(
         if let Some(e) = first_err {
             return Err(e);
         }
-        for s in 0..5 {
+        for s in 0..6 {
             if present[s] {
                 cols[s].push(vals[s]);
             }
@@ -244,7 +246,7 @@ pub fn read_recording_from<R: BufRead>(
     }
     let n = lines.len();
     let mut sidecar = sidecar.unwrap_or_default();
-    let [time, torque, pos, vel, acc] = cols;
+    let [time, torque, pos, vel, acc, tact] = cols;
     let time = if present[TIME] {
         check_increasing(&time, &lines, path)?;
         time
@@ -307,6 +309,7 @@ pub fn read_recording_from<R: BufRead>(
             position_rad: opt(present[POS], pos),
             velocity_rad_s: opt(present[VEL], vel),
             acceleration_rad_s2: opt(present[ACC], acc),
+            torque_actual_nm: opt(present[TACT], tact),
             sample_rate_hz: fs,
             sidecar,
         },

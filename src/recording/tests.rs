@@ -59,6 +59,7 @@ fn round_trip_is_bit_identical() {
         ),
         velocity_rad_s: None,
         acceleration_rad_s2: Some((0..n).map(|k| -(k as f64).ln_1p() * 1e12).collect()),
+        torque_actual_nm: Some((0..n).map(|k| k as f64 * 1e-3).collect()),
         sample_rate_hz: fs,
         sidecar: Sidecar {
             sample_rate_hz: Some(fs),

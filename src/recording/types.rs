@@ -23,6 +23,90 @@ pub struct Sidecar {
     /// Why the recording ended, if not by completing the planned excitation.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub ended_because: Option<String>,
+    /// How a measurement on a drive (`flexid sweep`) ended: complete, or why not and at
+    /// which cycle. Absent in files written before sweeps (and by simulations).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub end: Option<RecordingEnd>,
+    /// The drive the recording was measured on (identity, firmware profile, cycle).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub drive: Option<DriveInfo>,
+    /// Counters of the cyclic exchange (late/lost feedback, clamped set-points).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cycle_counters: Option<CycleCounters>,
+}
+
+/// How a measurement ended (the sidecar's `end` object).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct RecordingEnd {
+    /// True when the planned excitation ran to its end.
+    pub complete: bool,
+    /// What happened (`"excitation complete"`, `"drive fault: ..."`, `"interrupted (Ctrl-C)"`, ...).
+    pub reason: String,
+    /// The cycle (0 = the first row) at which the measurement stopped; for a complete
+    /// one, the number of rows.
+    pub cycle: u64,
+}
+
+/// The drive a recording was measured on (the sidecar's `drive` object).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct DriveInfo {
+    /// The bus (`udp:239.74.163.2:43113`, `socketcan:vcan0`, `simulated`).
+    #[serde(default)]
+    pub bus: String,
+    /// CANopen node-id.
+    #[serde(default)]
+    pub node: u8,
+    /// 0x1000 device type.
+    #[serde(default)]
+    pub device_type: u32,
+    /// 0x1018:1 vendor-id.
+    #[serde(default)]
+    pub vendor_id: u32,
+    /// 0x1018:2 product code.
+    #[serde(default)]
+    pub product_code: u32,
+    /// 0x1018:3 revision.
+    #[serde(default)]
+    pub revision: u32,
+    /// 0x1018:4 serial number.
+    #[serde(default)]
+    pub serial: u32,
+    /// The firmware profile used (name and file).
+    #[serde(default)]
+    pub profile: String,
+    /// Rated torque [N m] (the unit of the set-points, per mille).
+    #[serde(default)]
+    pub rated_torque_nm: f64,
+    /// Cycle rate [Hz].
+    #[serde(default)]
+    pub cycle_hz: f64,
+    /// Pacing of the cycles: `realtime` or `lockstep`.
+    #[serde(default)]
+    pub clock: String,
+}
+
+/// Counters of the cyclic exchange over the whole measurement (the sidecar's
+/// `cycle_counters`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct CycleCounters {
+    /// Cycles run (recorded rows plus the ramp to zero torque).
+    #[serde(default)]
+    pub cycles: u64,
+    /// Feedback messages (TPDOs) missing at their cycle's deadline.
+    #[serde(default)]
+    pub missed: u64,
+    /// Of those, arrived late.
+    #[serde(default)]
+    pub late: u64,
+    /// Of those, never arrived.
+    #[serde(default)]
+    pub lost: u64,
+    /// Set-points clamped to the drive's range.
+    #[serde(default)]
+    pub saturated: u64,
+    /// Frames for this exchange that could not be decoded.
+    #[serde(default)]
+    pub malformed: u64,
 }
 
 /// Which motion signal a recording's response columns hold.
@@ -53,6 +137,9 @@ pub struct Recording {
     pub velocity_rad_s: Option<Vec<f64>>,
     /// Acceleration [rad/s^2] as recorded.
     pub acceleration_rad_s2: Option<Vec<f64>>,
+    /// Actual motor torque [N m] reported by the drive (`torque_actual_nm`), information
+    /// only: the analysis uses the command.
+    pub torque_actual_nm: Option<Vec<f64>>,
     /// Sample rate [Hz] (from the sidecar or inferred from `time_s`).
     pub sample_rate_hz: f64,
     /// The sidecar, or a default one if none was found.

@@ -27,6 +27,7 @@ pub fn write_recording(path: impl AsRef<Path>, rec: &Recording) -> Result<(), Re
         rec.position_rad.as_deref().map(|v| (COLUMNS[2], v)),
         rec.velocity_rad_s.as_deref().map(|v| (COLUMNS[3], v)),
         rec.acceleration_rad_s2.as_deref().map(|v| (COLUMNS[4], v)),
+        rec.torque_actual_nm.as_deref().map(|v| (COLUMNS[5], v)),
     ]
     .into_iter()
     .flatten()
@@ -91,6 +92,7 @@ fn validate(path: &Path, rec: &Recording) -> Result<(), RecordingError> {
         (COLUMNS[2], rec.position_rad.as_ref()),
         (COLUMNS[3], rec.velocity_rad_s.as_ref()),
         (COLUMNS[4], rec.acceleration_rad_s2.as_ref()),
+        (COLUMNS[5], rec.torque_actual_nm.as_ref()),
     ];
     for (name, col) in cols {
         let Some(col) = col else { continue };

@@ -136,6 +136,7 @@ pub fn simulate_recording(
         position_rad: Some(position),
         velocity_rad_s: None,
         acceleration_rad_s2: None,
+        torque_actual_nm: None,
         sample_rate_hz: fs,
         sidecar,
     })

@@ -14,6 +14,8 @@ use crate::objects::comm;
 use crate::scaling::PositionUnwrap;
 
 const NMT_START: u8 = 0x01;
+/// Longest wait for one step's feedback in the CiA 402 walks (enable, disable, quick stop).
+const WALK_FEEDBACK_WAIT: Duration = Duration::from_millis(20);
 const NMT_ENTER_PRE_OPERATIONAL: u8 = 0x80;
 
 /// How strict one exchange is.
@@ -158,8 +160,13 @@ impl<B: CanBus> Link<B> {
                 Some(s) => next_controlword(s, target),
             }
             .after(self.last_cw);
-            let deadline = self.now() + period;
-            let (_, _) = self.exchange(cw, 0, deadline, Mode::Walk)?;
+            // Paced at the cycle period, but the feedback of a slow drive or bus (an
+            // emulated machine, a loaded host) is awaited up to WALK_FEEDBACK_WAIT: a
+            // TPDO that misses its cycle's deadline is stale and is never used.
+            let cycle_start = self.now();
+            let deadline = cycle_start + period;
+            let feedback_deadline = cycle_start + period.max(WALK_FEEDBACK_WAIT);
+            let (_, _) = self.exchange(cw, 0, feedback_deadline, Mode::Walk)?;
             seen = self.state();
             if seen == Some(target.state()) {
                 return Ok(());

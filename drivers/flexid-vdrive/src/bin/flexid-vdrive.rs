@@ -1,0 +1,238 @@
+//! `flexid-vdrive`: the simulated CiA 402 servo drive on a CAN bus.
+//!
+//! ```text
+//! flexid-vdrive --bus udp[:GROUP[:PORT]] | socketcan:IFACE [--node 5] [--plant P.toml]
+//!               [--clock lockstep|realtime] [--bitrate 1000000]
+//! ```
+//!
+//! Prints `flexid-vdrive: node N ready on BUS` on stdout once the boot-up frame is sent;
+//! exits 0 on SIGTERM/SIGINT, 2 on bad arguments or a bad plant file, 1 on a bus failure.
+
+use std::net::IpAddr;
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use clap::{Parser, ValueEnum};
+use flexid_can::timing::Paced;
+use flexid_can::{CanBus, UdpConfig, UdpMulticastBus};
+use flexid_vdrive::{plant_drive, ClockMode, DrivePlant, Runner};
+
+static STOP: AtomicBool = AtomicBool::new(false);
+
+extern "C" fn on_signal(_: libc::c_int) {
+    STOP.store(true, Ordering::Relaxed);
+}
+
+#[derive(Debug, Clone, Copy, ValueEnum)]
+enum Clock {
+    /// Each SYNC advances the plant by exactly one cycle.
+    Lockstep,
+    /// The plant follows the wall clock (whole cycles elapsed at each SYNC).
+    Realtime,
+}
+
+/// Simulated CiA 402 servo drive (CANopen slave) in front of a compliant-axis plant.
+#[derive(Debug, Parser)]
+#[command(name = "flexid-vdrive", version)]
+struct Cli {
+    /// `udp[:GROUP[:PORT]]` (python-can udp_multicast compatible) or `socketcan:IFACE`.
+    #[arg(long, default_value = "udp")]
+    bus: String,
+    /// Node id 1..=127 (default: the plant file's [drive] node_id, else 5).
+    #[arg(long)]
+    node: Option<u8>,
+    /// Plant file (TOML, with an optional [drive] section); default: the embedded
+    /// plants/scara_shoulder.toml.
+    #[arg(long)]
+    plant: Option<PathBuf>,
+    /// How the plant advances.
+    #[arg(long, value_enum, default_value = "lockstep")]
+    clock: Clock,
+    /// Emulate this bit rate [bit/s] on a virtual (UDP) bus; ignored on SocketCAN (set it
+    /// with `ip link`).
+    #[arg(long)]
+    bitrate: Option<u32>,
+    /// Seed of the plant's noise (nonlinear plant with [effects] only).
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+}
+
+enum BusSpec {
+    Udp(UdpConfig),
+    SocketCan(String),
+}
+
+fn parse_bus(s: &str) -> Result<BusSpec, String> {
+    if let Some(iface) = s.strip_prefix("socketcan:") {
+        if iface.is_empty() {
+            return Err("--bus socketcan:IFACE needs an interface".into());
+        }
+        return Ok(BusSpec::SocketCan(iface.to_string()));
+    }
+    let rest = match s.strip_prefix("udp") {
+        Some("") => return Ok(BusSpec::Udp(UdpConfig::default())),
+        Some(r) => r
+            .strip_prefix(':')
+            .ok_or_else(|| format!("--bus {s}: expected udp[:GROUP[:PORT]]"))?,
+        None => {
+            return Err(format!(
+                "--bus {s}: expected udp[:GROUP[:PORT]] or socketcan:IFACE"
+            ))
+        }
+    };
+    let bad = || format!("--bus {s}: expected udp[:GROUP[:PORT]] (IPv6: udp:[GROUP]:PORT)");
+    let (group, port) = if let Some(r) = rest.strip_prefix('[') {
+        let (g, p) = r.split_once(']').ok_or_else(bad)?;
+        (g, p.strip_prefix(':'))
+    } else if rest.parse::<IpAddr>().is_ok() {
+        (rest, None)
+    } else {
+        match rest.rsplit_once(':') {
+            Some((g, p)) => (g, Some(p)),
+            None => (rest, None),
+        }
+    };
+    let group: IpAddr = group.parse().map_err(|_| bad())?;
+    if !group.is_multicast() {
+        return Err(format!("--bus {s}: {group} is not a multicast group"));
+    }
+    let mut cfg = UdpConfig::group(group);
+    if let Some(p) = port {
+        cfg.port = p.parse().map_err(|_| bad())?;
+    }
+    Ok(BusSpec::Udp(cfg))
+}
+
+fn serve<B: CanBus>(bus: B, plant: &DrivePlant, clock: ClockMode, seed: u64) -> ExitCode {
+    let drive = match plant_drive(plant, clock, seed) {
+        Ok(d) => d,
+        Err(e) => {
+            eprintln!("flexid-vdrive: {e}");
+            return ExitCode::from(2);
+        }
+    };
+    let node = drive.config().node_id;
+    let mut runner = Runner::new(bus, drive);
+    runner.power_on();
+    println!("flexid-vdrive: node {node} ready on {}", runner.interface());
+    use std::io::Write;
+    let _ = std::io::stdout().flush();
+    tracing::info!(node, bus = runner.interface(), ?clock, "ready");
+    match runner.serve(&STOP) {
+        Ok(()) => {
+            let s = runner.drive().stats();
+            tracing::info!(frames = s.frames, syncs = s.syncs, "stopped");
+            ExitCode::SUCCESS
+        }
+        Err(e) => {
+            eprintln!("flexid-vdrive: {e}");
+            ExitCode::from(1)
+        }
+    }
+}
+
+fn main() -> ExitCode {
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_env("FLEXID_LOG")
+                .unwrap_or_else(|_| "warn".into()),
+        )
+        .with_writer(std::io::stderr)
+        .init();
+    let cli = match Cli::try_parse() {
+        Ok(c) => c,
+        Err(e) => {
+            let _ = e.print();
+            return ExitCode::from(if e.use_stderr() { 2 } else { 0 });
+        }
+    };
+    let mut plant = match DrivePlant::load(cli.plant.as_deref()) {
+        Ok(p) => p,
+        Err(e) => {
+            eprintln!("flexid-vdrive: bad plant file: {e}");
+            return ExitCode::from(2);
+        }
+    };
+    if let Some(n) = cli.node {
+        if !(1..=127).contains(&n) {
+            eprintln!("flexid-vdrive: --node {n}: must be 1..=127");
+            return ExitCode::from(2);
+        }
+        plant.drive.node_id = n;
+    }
+    let spec = match parse_bus(&cli.bus) {
+        Ok(s) => s,
+        Err(e) => {
+            eprintln!("flexid-vdrive: {e}");
+            return ExitCode::from(2);
+        }
+    };
+    // SAFETY: the handler only stores to an atomic (async-signal-safe).
+    unsafe {
+        libc::signal(libc::SIGTERM, on_signal as *const () as libc::sighandler_t);
+        libc::signal(libc::SIGINT, on_signal as *const () as libc::sighandler_t);
+    }
+    let clock = match cli.clock {
+        Clock::Lockstep => ClockMode::LockStep,
+        Clock::Realtime => ClockMode::RealTime,
+    };
+    match spec {
+        BusSpec::Udp(cfg) => match UdpMulticastBus::open(cfg) {
+            Ok(bus) => match cli.bitrate {
+                Some(b) if b > 0 => serve(Paced::new(bus, b), &plant, clock, cli.seed),
+                _ => serve(bus, &plant, clock, cli.seed),
+            },
+            Err(e) => {
+                eprintln!("flexid-vdrive: {e}");
+                ExitCode::from(1)
+            }
+        },
+        #[cfg(target_os = "linux")]
+        BusSpec::SocketCan(iface) => match flexid_can::SocketCanBus::open(&iface) {
+            Ok(bus) => {
+                if cli.bitrate.is_some() {
+                    tracing::info!("--bitrate ignored on SocketCAN (set it with ip link)");
+                }
+                serve(bus, &plant, clock, cli.seed)
+            }
+            Err(e) => {
+                eprintln!("flexid-vdrive: {e}");
+                ExitCode::from(1)
+            }
+        },
+        #[cfg(not(target_os = "linux"))]
+        BusSpec::SocketCan(_) => {
+            eprintln!("flexid-vdrive: SocketCAN is Linux only");
+            ExitCode::from(2)
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bus_specs() {
+        assert!(matches!(parse_bus("udp"), Ok(BusSpec::Udp(c)) if c == UdpConfig::default()));
+        match parse_bus("udp:239.74.163.2:5000") {
+            Ok(BusSpec::Udp(c)) => {
+                assert_eq!((c.group.to_string(), c.port), ("239.74.163.2".into(), 5000))
+            }
+            _ => panic!(),
+        }
+        match parse_bus("udp:239.1.2.3") {
+            Ok(BusSpec::Udp(c)) => assert_eq!(c.port, 43113),
+            _ => panic!(),
+        }
+        match parse_bus("udp:[ff15::1]:7") {
+            Ok(BusSpec::Udp(c)) => assert_eq!(c.port, 7),
+            _ => panic!(),
+        }
+        assert!(matches!(parse_bus("socketcan:vcan0"), Ok(BusSpec::SocketCan(i)) if i == "vcan0"));
+        assert!(parse_bus("udp:10.0.0.1").is_err());
+        assert!(parse_bus("tcp").is_err());
+        assert!(parse_bus("udp:239.1.2.3:x").is_err());
+    }
+}

@@ -1,0 +1,204 @@
+//! The CiA 402 device state machine ("power drive system"), written by hand: canopen-rs
+//! has no device profile.
+//!
+//! States and statusword values (bits 0-3, 5, 6; CiA 402-2 table "statusword"):
+//!
+//! | state | statusword |
+//! |---|---|
+//! | Not ready to switch on | `0x0000` |
+//! | Switch on disabled | `0x0040` |
+//! | Ready to switch on | `0x0021` |
+//! | Switched on | `0x0023` |
+//! | Operation enabled | `0x0027` |
+//! | Quick stop active | `0x0007` |
+//! | Fault reaction active | `0x000F` |
+//! | Fault | `0x0008` |
+//!
+//! Other statusword bits the drive sets: bit 11 "internal limit active" while the torque
+//! set-point is clamped. Bits 4 (voltage enabled), 7 (warning), 9 (remote) and 10
+//! (target reached) stay 0.
+
+/// Controlword bit 7: fault reset (acts on its rising edge).
+pub const CW_FAULT_RESET: u16 = 0x0080;
+/// Statusword bit 11: internal limit active.
+pub const SW_INTERNAL_LIMIT: u16 = 0x0800;
+
+/// Mode of operation (0x6060 / 0x6061 values).
+pub mod mode {
+    /// Profile torque.
+    pub const PT: i8 = 4;
+    /// Cyclic synchronous position.
+    pub const CSP: i8 = 8;
+    /// Cyclic synchronous velocity.
+    pub const CSV: i8 = 9;
+    /// Cyclic synchronous torque.
+    pub const CST: i8 = 10;
+    /// Whether the drive supports `m`.
+    pub const fn supported(m: i8) -> bool {
+        matches!(m, PT | CSP | CSV | CST)
+    }
+}
+
+/// A state of the CiA 402 power drive system state machine.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum State {
+    NotReadyToSwitchOn,
+    SwitchOnDisabled,
+    ReadyToSwitchOn,
+    SwitchedOn,
+    OperationEnabled,
+    QuickStopActive,
+    FaultReactionActive,
+    Fault,
+}
+
+impl State {
+    /// The statusword bits 0-3, 5, 6 of this state.
+    pub const fn statusword(self) -> u16 {
+        match self {
+            State::NotReadyToSwitchOn => 0x0000,
+            State::SwitchOnDisabled => 0x0040,
+            State::ReadyToSwitchOn => 0x0021,
+            State::SwitchedOn => 0x0023,
+            State::OperationEnabled => 0x0027,
+            State::QuickStopActive => 0x0007,
+            State::FaultReactionActive => 0x000F,
+            State::Fault => 0x0008,
+        }
+    }
+
+    /// Whether the power stage produces torque in this state.
+    pub const fn torque_enabled(self) -> bool {
+        matches!(self, State::OperationEnabled | State::QuickStopActive)
+    }
+}
+
+/// A device control command decoded from the controlword (bits 0-3, 7).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Command {
+    /// `xxxx xx0x` (e.g. 0x0000).
+    DisableVoltage,
+    /// `xxxx x01x` (e.g. 0x0002).
+    QuickStop,
+    /// `xxxx x110` (0x0006).
+    Shutdown,
+    /// `xxxx 0111` (0x0007); also "disable operation".
+    SwitchOn,
+    /// `xxxx 1111` (0x000F).
+    EnableOperation,
+}
+
+impl Command {
+    /// Decodes bits 0-3 (bit 7, fault reset, is handled as an edge by [`DeviceControl`]).
+    pub const fn decode(cw: u16) -> Command {
+        if cw & 0x0002 == 0 {
+            Command::DisableVoltage
+        } else if cw & 0x0004 == 0 {
+            Command::QuickStop
+        } else if cw & 0x0001 == 0 {
+            Command::Shutdown
+        } else if cw & 0x0008 == 0 {
+            Command::SwitchOn
+        } else {
+            Command::EnableOperation
+        }
+    }
+}
+
+/// The state machine: controlword in, state out.
+#[derive(Debug, Clone)]
+pub struct DeviceControl {
+    state: State,
+    last_cw: u16,
+}
+
+impl Default for DeviceControl {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl DeviceControl {
+    /// After power-on: transition 1 (self-test done) leaves the drive in Switch on disabled.
+    pub fn new() -> Self {
+        Self {
+            state: State::SwitchOnDisabled,
+            last_cw: 0,
+        }
+    }
+
+    /// The current state.
+    pub fn state(&self) -> State {
+        self.state
+    }
+
+    /// Applies a controlword (every RPDO / SDO write is evaluated, as drives do).
+    /// `fault_cleared`: whether the cause of a fault is gone (fault reset only then leaves
+    /// Fault). Returns the new state.
+    pub fn on_controlword(&mut self, cw: u16, fault_cleared: bool) -> State {
+        let rising_reset = cw & CW_FAULT_RESET != 0 && self.last_cw & CW_FAULT_RESET == 0;
+        self.last_cw = cw;
+        use Command::*;
+        use State::*;
+        self.state = match (self.state, Command::decode(cw)) {
+            (Fault, _) if rising_reset && fault_cleared => SwitchOnDisabled, // 15
+            (Fault | FaultReactionActive | NotReadyToSwitchOn, _) => self.state,
+            (_, _) if cw & CW_FAULT_RESET != 0 => self.state, // bit 7 outside Fault: no command
+            (SwitchOnDisabled, Shutdown) => ReadyToSwitchOn,  // 2
+            (SwitchOnDisabled, _) => SwitchOnDisabled,
+            (ReadyToSwitchOn, SwitchOn) => SwitchedOn, // 3
+            (ReadyToSwitchOn, EnableOperation) => OperationEnabled, // 3 + 4
+            (ReadyToSwitchOn, DisableVoltage | QuickStop) => SwitchOnDisabled, // 7
+            (ReadyToSwitchOn, Shutdown) => ReadyToSwitchOn,
+            (SwitchedOn, EnableOperation) => OperationEnabled, // 4
+            (SwitchedOn, Shutdown) => ReadyToSwitchOn,         // 6
+            (SwitchedOn, DisableVoltage | QuickStop) => SwitchOnDisabled, // 10
+            (SwitchedOn, SwitchOn) => SwitchedOn,
+            (OperationEnabled, SwitchOn) => SwitchedOn, // 5
+            (OperationEnabled, Shutdown) => ReadyToSwitchOn, // 8
+            (OperationEnabled, DisableVoltage) => SwitchOnDisabled, // 9
+            (OperationEnabled, QuickStop) => QuickStopActive, // 11
+            (OperationEnabled, EnableOperation) => OperationEnabled,
+            (QuickStopActive, DisableVoltage) => SwitchOnDisabled, // 12
+            (QuickStopActive, _) => QuickStopActive, // option code 2: no transition 16
+        };
+        self.state
+    }
+
+    /// A fault: transitions 13 and 14 (the reaction, torque off, is immediate).
+    pub fn fault(&mut self) {
+        self.state = State::Fault;
+    }
+
+    /// The quick-stop ramp has reached zero torque: quick stop option code 2, transition 12.
+    pub fn quick_stop_done(&mut self) {
+        if self.state == State::QuickStopActive {
+            self.state = State::SwitchOnDisabled;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn decode_commands() {
+        assert_eq!(Command::decode(0x0000), Command::DisableVoltage);
+        assert_eq!(Command::decode(0x0002), Command::QuickStop);
+        assert_eq!(Command::decode(0x0006), Command::Shutdown);
+        assert_eq!(Command::decode(0x0007), Command::SwitchOn);
+        assert_eq!(Command::decode(0x000F), Command::EnableOperation);
+        assert_eq!(Command::decode(0x000B), Command::QuickStop);
+    }
+
+    #[test]
+    fn fault_reset_needs_a_rising_edge_and_a_cleared_cause() {
+        let mut d = DeviceControl::new();
+        d.fault();
+        assert_eq!(d.on_controlword(0x0080, false), State::Fault);
+        assert_eq!(d.on_controlword(0x0080, true), State::Fault); // no edge
+        d.on_controlword(0x0000, true);
+        assert_eq!(d.on_controlword(0x0080, true), State::SwitchOnDisabled);
+    }
+}

@@ -1,0 +1,530 @@
+//! The sans-I/O drive core: frames and time in, frames out.
+//!
+//! [`VirtualDrive`] joins the CiA 301 slave ([`crate::slave`]), the CiA 402 state machine
+//! ([`crate::cia402`]), the limits ([`crate::limits`]), the heartbeat timers
+//! ([`crate::heartbeat`]) and the physics ([`crate::physics`]). Time is injected (`now`:
+//! a monotonic [`Duration`] since any fixed epoch), so tests drive it without sleeping.
+//!
+//! Timing convention (the identification relies on it): RPDOs received during cycle `k`
+//! are latched in the dictionary; on SYNC `k` the drive (1) samples the plant (position,
+//! velocity, torque at the SYNC instant, before the new set-point acts), publishes the
+//! sample and sends its TPDOs, then (2) applies the latched set-point and advances the
+//! plant by one cycle (zero-order hold). TPDO `k` is the state before torque `k`, exactly
+//! like `flexid::sim`. The controlword is evaluated as soon as it is received.
+
+use std::time::Duration;
+
+use canopen_rs::{Address, NmtState, Value};
+use flexid_can::CanFrame;
+
+use crate::cia402::{self, DeviceControl, State};
+use crate::config::{ClockMode, DriveConfig};
+use crate::heartbeat::{Consumer, Producer};
+use crate::limits::{FaultKind, Limiter};
+use crate::od::{self, idx, Od, OdDefaults};
+use crate::physics::{AxisSample, Physics};
+use crate::slave::{Slave, SlaveError, SlaveEvent};
+
+/// Most frames one call can produce.
+pub const MAX_OUTPUTS: usize = 8;
+
+/// The frames to send after one call, in order. Fixed capacity, no heap.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Outputs {
+    frames: [Option<CanFrame>; MAX_OUTPUTS],
+    len: usize,
+    dropped: usize,
+}
+
+impl Outputs {
+    /// Appends a frame (`None` is skipped; beyond capacity the frame is counted as dropped).
+    pub fn push(&mut self, frame: Option<CanFrame>) {
+        let Some(f) = frame else { return };
+        if self.len < MAX_OUTPUTS {
+            self.frames[self.len] = Some(f);
+            self.len += 1;
+        } else {
+            self.dropped += 1;
+        }
+    }
+
+    /// The frames, in sending order.
+    pub fn iter(&self) -> impl Iterator<Item = &CanFrame> + '_ {
+        self.frames[..self.len].iter().flatten()
+    }
+
+    /// Number of frames.
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    /// Whether there is nothing to send.
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    /// Frames that did not fit (a bug if ever non-zero).
+    pub fn dropped(&self) -> usize {
+        self.dropped
+    }
+}
+
+/// Counters of a drive.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct DriveStats {
+    /// Frames handed to [`VirtualDrive::on_frame`].
+    pub frames: u64,
+    /// SYNCs processed.
+    pub syncs: u64,
+    /// Frames ignored as malformed (SYNC with DLC > 1, extended ids, error frames).
+    pub ignored: u64,
+    /// Plant cycles stepped.
+    pub cycles: u64,
+}
+
+/// Errors building a drive.
+#[derive(Debug, thiserror::Error)]
+pub enum DriveError {
+    /// The CiA 301 slave could not be built.
+    #[error("node {node_id}: {source}")]
+    Slave {
+        node_id: u8,
+        #[source]
+        source: SlaveError,
+    },
+    /// The cycle rate is not usable.
+    #[error("cycle rate {cycle_hz} Hz must be positive and at most 1 MHz")]
+    CycleRate { cycle_hz: f64 },
+}
+
+/// The simulated CiA 402 servo drive.
+pub struct VirtualDrive<P: Physics> {
+    cfg: DriveConfig,
+    slave: Slave,
+    dc: DeviceControl,
+    limiter: Limiter,
+    physics: P,
+    producer: Producer,
+    consumer: Consumer,
+    fault: Option<FaultKind>,
+    /// Torque held over the current cycle [N m].
+    applied_nm: f64,
+    limited: bool,
+    velocity_integral: f64,
+    last: AxisSample,
+    ts: f64,
+    inc_per_rad: f64,
+    anchor: Option<Duration>,
+    cycles_since_anchor: u64,
+    stats: DriveStats,
+}
+
+impl<P: Physics> VirtualDrive<P> {
+    /// A powered-off drive in front of `physics` (which must step at `cfg.cycle_hz`).
+    /// Call [`VirtualDrive::power_on`] to boot it.
+    pub fn new(cfg: DriveConfig, mut physics: P) -> Result<Self, DriveError> {
+        if !(cfg.cycle_hz.is_finite() && cfg.cycle_hz > 0.0 && cfg.cycle_hz <= 1e6) {
+            return Err(DriveError::CycleRate {
+                cycle_hz: cfg.cycle_hz,
+            });
+        }
+        let slave = Slave::new(defaults(&cfg)).map_err(|source| DriveError::Slave {
+            node_id: cfg.node_id,
+            source,
+        })?;
+        let last = physics.sample();
+        Ok(Self {
+            ts: 1.0 / cfg.cycle_hz,
+            inc_per_rad: f64::from(cfg.encoder_increments_per_rev) / (2.0 * std::f64::consts::PI),
+            limiter: Limiter::new(cfg.limits),
+            cfg,
+            slave,
+            dc: DeviceControl::new(),
+            physics,
+            producer: Producer::default(),
+            consumer: Consumer::default(),
+            fault: None,
+            applied_nm: 0.0,
+            limited: false,
+            velocity_integral: 0.0,
+            last,
+            anchor: None,
+            cycles_since_anchor: 0,
+            stats: DriveStats::default(),
+        })
+    }
+
+    /// Power-on: boot-up frame (0x700 + id, `[0x00]`), timers started.
+    pub fn power_on(&mut self, now: Duration) -> Outputs {
+        let mut out = Outputs::default();
+        self.boot(now, &mut out);
+        out
+    }
+
+    /// Handles one received frame at `now`. Never panics, whatever the frame.
+    pub fn on_frame(&mut self, frame: &CanFrame, now: Duration) -> Outputs {
+        let mut out = Outputs::default();
+        self.stats.frames += 1;
+        if frame.is_error() || frame.id().is_extended() {
+            self.stats.ignored += 1;
+            return out;
+        }
+        let cob = frame.id().raw() as u16;
+        let id = u16::from(self.cfg.node_id);
+        if frame.is_remote() {
+            if cob == 0x700 + id && self.slave.nmt() != NmtState::Initialising {
+                out.push(self.slave.node_guard());
+            }
+            return out;
+        }
+        let data = frame.data();
+        if self.consumer.enabled() && cob == 0x700 + u16::from(self.consumer.node()) {
+            if data.len() == 1 {
+                self.consumer.seen(now);
+            }
+            return out;
+        }
+        if cob == self.slave.sync_cob_id() {
+            if data.len() <= 1 {
+                self.sync_into(now, &mut out);
+            } else {
+                self.stats.ignored += 1;
+            }
+            return out;
+        }
+        let (resp, ev) = self.slave.on_frame(cob, data);
+        out.push(resp);
+        match ev {
+            SlaveEvent::None => {}
+            SlaveEvent::Reset { communication_only } => {
+                if let Err(e) = self.slave.reset(communication_only) {
+                    tracing::error!("reset failed: {e}"); // the defaults built once already
+                }
+                if !communication_only {
+                    self.reset_application();
+                } else if let Some(k) = self.fault {
+                    // The fault outlives a communication reset: keep 0x1001 showing it.
+                    let reg = k.error_register().0 | canopen_rs::ErrorRegister::GENERIC;
+                    od::set(
+                        self.slave.od_mut(),
+                        idx::ERROR_REGISTER,
+                        Value::Unsigned8(reg),
+                    );
+                }
+                self.boot(now, &mut out);
+            }
+            SlaveEvent::Nmt(cmd) => {
+                tracing::debug!(cmd, "NMT");
+                if cmd == 0x02 && self.dc.state().torque_enabled() {
+                    // NMT stop: no more set-points arrive; disable voltage.
+                    self.dc.on_controlword(0x0000, true);
+                    self.publish_status();
+                }
+            }
+            SlaveEvent::Rpdo => self.on_controlword(&mut out),
+            SlaveEvent::Written(a) => self.on_written(a, now, &mut out),
+        }
+        out
+    }
+
+    /// A SYNC at `now` (also reachable through [`VirtualDrive::on_frame`]).
+    pub fn on_sync(&mut self, now: Duration) -> Outputs {
+        let mut out = Outputs::default();
+        self.sync_into(now, &mut out);
+        out
+    }
+
+    /// Timers at `now`: heartbeat production, heartbeat consumer supervision.
+    pub fn tick(&mut self, now: Duration) -> Outputs {
+        let mut out = Outputs::default();
+        if self.producer.due(now) {
+            out.push(self.slave.heartbeat());
+        }
+        if self.fault.is_none()
+            && self.dc.state() == State::OperationEnabled
+            && self.consumer.overdue(now)
+        {
+            tracing::warn!("master heartbeat lost");
+            self.raise(FaultKind::HeartbeatLost, &mut out);
+        }
+        out
+    }
+
+    /// When [`VirtualDrive::tick`] next has something to do.
+    pub fn next_deadline(&self) -> Option<Duration> {
+        match (self.producer.next_due(), self.consumer.deadline()) {
+            (Some(a), Some(b)) => Some(a.min(b)),
+            (a, b) => a.or(b),
+        }
+    }
+
+    /// The CiA 402 state.
+    pub fn state(&self) -> State {
+        self.dc.state()
+    }
+
+    /// The NMT state.
+    pub fn nmt(&self) -> NmtState {
+        self.slave.nmt()
+    }
+
+    /// The active fault, if any.
+    pub fn fault(&self) -> Option<FaultKind> {
+        self.fault
+    }
+
+    /// The torque held over the current cycle [N m].
+    pub fn applied_torque_nm(&self) -> f64 {
+        self.applied_nm
+    }
+
+    /// The last SYNC sample.
+    pub fn last_sample(&self) -> AxisSample {
+        self.last
+    }
+
+    /// The object dictionary.
+    pub fn od(&self) -> &Od {
+        self.slave.od()
+    }
+
+    /// The physics.
+    pub fn physics(&self) -> &P {
+        &self.physics
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &DriveConfig {
+        &self.cfg
+    }
+
+    /// Counters.
+    pub fn stats(&self) -> DriveStats {
+        self.stats
+    }
+
+    fn boot(&mut self, now: Duration, out: &mut Outputs) {
+        out.push(self.slave.boot());
+        let hb = od::get_u32(self.slave.od(), idx::HB_PRODUCER, 0).unwrap_or(0) as u16;
+        self.producer.restart(hb, now);
+        self.consumer
+            .configure(od::get_u32(self.slave.od(), idx::HB_CONSUMER, 1).unwrap_or(0));
+        self.publish(&self.last.clone());
+    }
+
+    fn reset_application(&mut self) {
+        self.dc = DeviceControl::new();
+        self.fault = None;
+        self.limiter.reset();
+        self.limited = false;
+        self.velocity_integral = 0.0;
+    }
+
+    fn on_written(&mut self, a: Address, now: Duration, out: &mut Outputs) {
+        match a.index {
+            idx::CONTROLWORD => self.on_controlword(out),
+            idx::HB_PRODUCER => {
+                let ms = od::get_u32(self.slave.od(), idx::HB_PRODUCER, 0).unwrap_or(0) as u16;
+                self.producer.restart(ms, now);
+            }
+            idx::HB_CONSUMER => self
+                .consumer
+                .configure(od::get_u32(self.slave.od(), idx::HB_CONSUMER, 1).unwrap_or(0)),
+            idx::MODES => self.publish_status(),
+            _ => {}
+        }
+    }
+
+    fn on_controlword(&mut self, out: &mut Outputs) {
+        let cw = od::get_u32(self.slave.od(), idx::CONTROLWORD, 0).unwrap_or(0) as u16;
+        let cleared = self
+            .fault
+            .is_none_or(|k| self.limiter.cleared(k, self.last.velocity_rad_s));
+        let before = self.dc.state();
+        let after = self.dc.on_controlword(cw, cleared);
+        if before == State::Fault && after != State::Fault {
+            self.fault = None;
+            od::set(self.slave.od_mut(), idx::ERROR_CODE, Value::Unsigned16(0));
+            out.push(self.slave.clear_errors());
+        }
+        if after == State::OperationEnabled && before != State::OperationEnabled {
+            self.velocity_integral = 0.0;
+        }
+        if before != after {
+            tracing::debug!(?before, ?after, cw, "CiA 402");
+        }
+        self.publish_status();
+    }
+
+    fn raise(&mut self, kind: FaultKind, out: &mut Outputs) {
+        if self.fault.is_some() {
+            return;
+        }
+        tracing::warn!(?kind, code = kind.emcy_code(), "fault");
+        self.fault = Some(kind);
+        self.dc.fault();
+        self.limited = false;
+        od::set(
+            self.slave.od_mut(),
+            idx::ERROR_CODE,
+            Value::Unsigned16(kind.emcy_code()),
+        );
+        out.push(
+            self.slave
+                .emergency(kind.emcy_code(), kind.error_register()),
+        );
+        self.publish_status();
+    }
+
+    fn sync_into(&mut self, now: Duration, out: &mut Outputs) {
+        self.stats.syncs += 1;
+        if self.cfg.clock == ClockMode::RealTime {
+            self.catch_up(now);
+        }
+        let s = self.physics.sample();
+        self.last = s;
+        if self.fault.is_none() {
+            if let Some(k) = self.limiter.check_speed(s.velocity_rad_s) {
+                self.raise(k, out);
+            }
+        }
+        self.publish(&s);
+        self.slave.sync_tpdos(|f| out.push(Some(f)));
+        let t = self.setpoint(&s);
+        self.physics.step(t);
+        self.applied_nm = t;
+        self.stats.cycles += 1;
+        self.cycles_since_anchor += 1;
+        if self.fault.is_none() {
+            if let Some(k) = self.limiter.integrate_i2t(t, self.ts) {
+                self.raise(k, out);
+            }
+        } else {
+            let _ = self.limiter.integrate_i2t(t, self.ts);
+        }
+    }
+
+    /// Real-time clock: step the plant (holding the torque) through the whole cycles of
+    /// wall time elapsed since the first SYNC that it has not stepped yet.
+    fn catch_up(&mut self, now: Duration) {
+        let Some(anchor) = self.anchor else {
+            self.anchor = Some(now);
+            self.cycles_since_anchor = 0;
+            return;
+        };
+        let due = (now.saturating_sub(anchor).as_secs_f64() / self.ts + 1e-6).floor() as u64;
+        let extra = due.saturating_sub(self.cycles_since_anchor);
+        let cap = self.cfg.cycle_hz.ceil() as u64; // one second
+        if extra > cap {
+            tracing::warn!(extra, "SYNC gap over 1 s: plant re-anchored, not caught up");
+            self.anchor = Some(now);
+            self.cycles_since_anchor = 0;
+            return;
+        }
+        for _ in 0..extra {
+            self.physics.step(self.applied_nm);
+            self.stats.cycles += 1;
+        }
+        self.cycles_since_anchor += extra;
+    }
+
+    /// The torque for the coming cycle [N m] from the latched set-point, state and mode.
+    fn setpoint(&mut self, s: &AxisSample) -> f64 {
+        let od = self.slave.od();
+        let rated = od::get_u32(od, idx::RATED_TORQUE, 0).unwrap_or(1000) as f64 / 1000.0;
+        let max_t = od::get_u32(od, idx::MAX_TORQUE, 0).unwrap_or(0) as f64 * rated / 1000.0;
+        match self.dc.state() {
+            State::OperationEnabled => {
+                let mode = od::get_i64(od, idx::MODES).unwrap_or(0) as i8;
+                let want = match mode {
+                    cia402::mode::CST | cia402::mode::PT => {
+                        od::get_i64(od, idx::TARGET_TORQUE).unwrap_or(0) as f64 * rated / 1000.0
+                    }
+                    cia402::mode::CSV => {
+                        let v = od::get_i64(od, idx::TARGET_VELOCITY).unwrap_or(0) as f64
+                            / self.inc_per_rad;
+                        self.velocity_pi(v, s.velocity_rad_s)
+                    }
+                    cia402::mode::CSP => {
+                        let target = od::get_i64(od, idx::TARGET_POSITION).unwrap_or(0) as i32;
+                        let actual = od::get_i64(od, idx::POSITION_ACTUAL).unwrap_or(0) as i32;
+                        let err = f64::from(target.wrapping_sub(actual)) / self.inc_per_rad;
+                        let v = self.cfg.position_kp * err;
+                        self.velocity_pi(v, s.velocity_rad_s)
+                    }
+                    _ => 0.0,
+                };
+                let (t, limited) = self.limiter.clamp(want, max_t);
+                self.limited = limited;
+                t
+            }
+            State::QuickStopActive => {
+                let step = self.cfg.quick_stop_slope_nm_per_s * self.ts;
+                let t = if self.applied_nm.abs() <= step {
+                    0.0
+                } else {
+                    self.applied_nm - step.copysign(self.applied_nm)
+                };
+                self.limited = false;
+                if t == 0.0 {
+                    self.dc.quick_stop_done();
+                }
+                t
+            }
+            _ => {
+                self.limited = false;
+                self.velocity_integral = 0.0;
+                0.0
+            }
+        }
+    }
+
+    /// Velocity PI with a clamped integrator [N m].
+    fn velocity_pi(&mut self, target_rad_s: f64, actual_rad_s: f64) -> f64 {
+        let e = target_rad_s - actual_rad_s;
+        let ki = self.cfg.velocity_ki;
+        if ki > 0.0 {
+            let bound = self.cfg.limits.peak_torque_nm / ki;
+            self.velocity_integral = (self.velocity_integral + e * self.ts).clamp(-bound, bound);
+        }
+        self.cfg.velocity_kp * e + ki * self.velocity_integral
+    }
+
+    fn publish(&mut self, s: &AxisSample) {
+        let rated =
+            od::get_u32(self.slave.od(), idx::RATED_TORQUE, 0).unwrap_or(1000) as f64 / 1000.0;
+        let pos = (s.position_rad * self.inc_per_rad).round() as i64 as i32;
+        let vel = (s.velocity_rad_s * self.inc_per_rad).round() as i32;
+        let tq = (s.torque_nm / rated * 1000.0).round() as i16;
+        let od = self.slave.od_mut();
+        od::set(od, idx::POSITION_ACTUAL, Value::Integer32(pos));
+        od::set(od, idx::VELOCITY_ACTUAL, Value::Integer32(vel));
+        od::set(od, idx::TORQUE_ACTUAL, Value::Integer16(tq));
+        self.publish_status();
+    }
+
+    fn publish_status(&mut self) {
+        let state = self.dc.state();
+        let mut sw = state.statusword();
+        if self.limited && state == State::OperationEnabled {
+            sw |= cia402::SW_INTERNAL_LIMIT;
+        }
+        let mode = od::get_i64(self.slave.od(), idx::MODES).unwrap_or(0) as i8;
+        let od = self.slave.od_mut();
+        od::set(od, idx::STATUSWORD, Value::Unsigned16(sw));
+        od::set(od, idx::MODES_DISPLAY, Value::Integer8(mode));
+    }
+}
+
+fn defaults(cfg: &DriveConfig) -> OdDefaults {
+    let peak_permille = cfg.limits.peak_torque_nm / cfg.rated_torque_nm * 1000.0;
+    OdDefaults {
+        node_id: cfg.node_id,
+        cycle_us: (1e6 / cfg.cycle_hz).round() as u32,
+        heartbeat_ms: cfg.heartbeat_producer_ms,
+        heartbeat_consumer: cfg.heartbeat_consumer,
+        rated_torque_mnm: (cfg.rated_torque_nm * 1000.0).round() as u32,
+        max_torque_permille: peak_permille.round().min(f64::from(u16::MAX)) as u16,
+        mode: cia402::mode::CST,
+    }
+}

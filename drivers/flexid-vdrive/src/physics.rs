@@ -1,0 +1,194 @@
+//! The physics behind the drive: a trait the drive samples and steps once per cycle, and
+//! its exact linear implementation for an n-mass chain.
+//!
+//! The nonlinear plant of the main crate, `flexid::plant::PlantSim` (merged separately),
+//! has the same shape (`sample()` / `step(torque_cmd_nm)`, an `AxisSample` with the same
+//! fields). Its impl below is compiled with the `plantsim` feature, once `flexid::plant`
+//! exists; after that merge `AxisSample` here can become `pub use flexid::plant::AxisSample;`
+//! and `sample` a plain `PlantSim::sample(self)`.
+
+use flexid::model::{Chain, ModelError, StateSpace};
+
+/// The axis as sampled at one cycle instant (before that cycle's torque acts).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct AxisSample {
+    /// Plant time at the sample [s] (cycles stepped times the cycle period).
+    pub time_s: f64,
+    /// Motor angle [rad] (unquantised; the drive quantises to encoder increments).
+    pub position_rad: f64,
+    /// Motor angular velocity [rad/s].
+    pub velocity_rad_s: f64,
+    /// Torque acting on the motor during the cycle that ends at this sample [N m].
+    pub torque_nm: f64,
+    /// Angle of the last body of the chain (the load) [rad].
+    pub load_position_rad: f64,
+}
+
+/// A physics model the drive advances in whole cycles under zero-order hold.
+///
+/// Implementations must not allocate in `sample` or `step` (they run every cycle).
+pub trait Physics: Send {
+    /// The state at the current cycle instant.
+    fn sample(&mut self) -> AxisSample;
+    /// Hold `torque_nm` [N m] on the motor for one cycle and advance to the next instant.
+    fn step(&mut self, torque_nm: f64);
+}
+
+impl<P: Physics + ?Sized> Physics for Box<P> {
+    fn sample(&mut self) -> AxisSample {
+        (**self).sample()
+    }
+    fn step(&mut self, torque_nm: f64) {
+        (**self).step(torque_nm)
+    }
+}
+
+/// The main crate's nonlinear plant (current loop, friction, backlash, ..., noise).
+#[cfg(feature = "plantsim")]
+impl Physics for flexid::plant::PlantSim {
+    fn sample(&mut self) -> AxisSample {
+        let s = flexid::plant::PlantSim::sample(self);
+        AxisSample {
+            time_s: s.time_s,
+            position_rad: s.position_rad,
+            velocity_rad_s: s.velocity_rad_s,
+            torque_nm: s.torque_nm,
+            load_position_rad: s.load_position_rad,
+        }
+    }
+    fn step(&mut self, torque_nm: f64) {
+        flexid::plant::PlantSim::step(self, torque_nm)
+    }
+}
+
+/// Errors of the physics layer.
+#[derive(Debug, thiserror::Error)]
+pub enum PhysicsError {
+    /// The chain's parameters are invalid.
+    #[error("chain: {0}")]
+    Chain(#[from] ModelError),
+    /// The cycle rate is not a positive finite number.
+    #[error("cycle rate {cycle_hz} Hz must be positive and finite")]
+    CycleRate {
+        /// The rejected rate [Hz].
+        cycle_hz: f64,
+    },
+}
+
+/// An n-mass chain advanced exactly under ZOH, `x[k+1] = Ad x[k] + Bd T[k]`, with the
+/// discretisation of [`flexid::model::StateSpace::discretize`] (the same one
+/// `flexid::sim::simulate_position` uses). State `[theta_1..theta_n, omega_1..omega_n]`.
+#[derive(Debug, Clone)]
+pub struct LinearChain {
+    n: usize,
+    ts: f64,
+    /// `Ad`, row-major, `2n x 2n`.
+    ad: Vec<f64>,
+    /// `Bd`, `2n`.
+    bd: Vec<f64>,
+    x: Vec<f64>,
+    next: Vec<f64>,
+    cycles: u64,
+    last_torque_nm: f64,
+}
+
+impl LinearChain {
+    /// The chain at rest, stepped at `cycle_hz` [Hz].
+    pub fn new(chain: &Chain, cycle_hz: f64) -> Result<Self, PhysicsError> {
+        chain.validate()?;
+        if !(cycle_hz.is_finite() && cycle_hz > 0.0) {
+            return Err(PhysicsError::CycleRate { cycle_hz });
+        }
+        let ts = 1.0 / cycle_hz;
+        let d = StateSpace::of(chain).discretize(ts);
+        let n = chain.masses();
+        let m = 2 * n;
+        let mut ad = vec![0.0; m * m];
+        for i in 0..m {
+            for j in 0..m {
+                ad[i * m + j] = d.ad[(i, j)];
+            }
+        }
+        Ok(Self {
+            n,
+            ts,
+            ad,
+            bd: d.bd.iter().copied().collect(),
+            x: vec![0.0; m],
+            next: vec![0.0; m],
+            cycles: 0,
+            last_torque_nm: 0.0,
+        })
+    }
+
+    /// The cycle period [s].
+    pub fn cycle_s(&self) -> f64 {
+        self.ts
+    }
+
+    /// Sets every body's velocity to `rad_s` [rad/s] (a drifting start).
+    pub fn set_velocity(&mut self, rad_s: f64) {
+        let n = self.n;
+        for v in &mut self.x[n..] {
+            *v = rad_s;
+        }
+    }
+}
+
+impl Physics for LinearChain {
+    fn sample(&mut self) -> AxisSample {
+        AxisSample {
+            time_s: self.cycles as f64 * self.ts,
+            position_rad: self.x[0],
+            velocity_rad_s: self.x[self.n],
+            torque_nm: self.last_torque_nm,
+            load_position_rad: self.x[self.n - 1],
+        }
+    }
+
+    fn step(&mut self, torque_nm: f64) {
+        let m = 2 * self.n;
+        // Same summation order as flexid::sim::simulate_position (bit-identical results).
+        for (i, nx) in self.next.iter_mut().enumerate() {
+            let mut acc = self.bd[i] * torque_nm;
+            for (a, xj) in self.ad[i * m..(i + 1) * m].iter().zip(&self.x) {
+                acc += a * xj;
+            }
+            *nx = acc;
+        }
+        std::mem::swap(&mut self.x, &mut self.next);
+        self.cycles += 1;
+        self.last_torque_nm = torque_nm;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn matches_flexid_sim_exactly() {
+        let chain =
+            Chain::new(vec![2e-3, 4e-3, 9e-3], vec![600.0, 9000.0], vec![0.05, 0.3]).unwrap();
+        let torque: Vec<f64> = (0..500).map(|k| ((k as f64) * 0.37).sin() * 0.3).collect();
+        let opts = flexid::sim::SimOptions {
+            sample_rate_hz: 2000.0,
+            ..Default::default()
+        };
+        let want = flexid::sim::simulate_position(&chain, &torque, &opts).unwrap();
+        let mut p = LinearChain::new(&chain, 2000.0).unwrap();
+        for (k, &t) in torque.iter().enumerate() {
+            assert_eq!(p.sample().position_rad, want[k], "sample {k}");
+            p.step(t);
+        }
+    }
+
+    #[test]
+    fn rejects_bad_rate() {
+        let chain = Chain::new(vec![1e-3], vec![], vec![]).unwrap();
+        assert!(matches!(
+            LinearChain::new(&chain, 0.0),
+            Err(PhysicsError::CycleRate { .. })
+        ));
+    }
+}

@@ -1,0 +1,110 @@
+//! The blocking runner: a [`VirtualDrive`] on any [`CanBus`], on the calling thread.
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use flexid_can::{BusError, CanBus};
+
+use crate::drive::{Outputs, VirtualDrive};
+use crate::physics::Physics;
+
+/// Longest wait in `recv_timeout`, so that a stop request is seen promptly.
+pub const POLL: Duration = Duration::from_millis(20);
+
+/// Errors of the runner.
+#[derive(Debug, thiserror::Error)]
+pub enum RunError {
+    /// The bus failed (not a report such as an error frame: those are logged).
+    #[error("bus {interface}: {source}")]
+    Bus {
+        interface: String,
+        #[source]
+        source: BusError,
+    },
+}
+
+/// A drive on a bus.
+pub struct Runner<B: CanBus, P: Physics> {
+    bus: B,
+    drive: VirtualDrive<P>,
+    epoch: Instant,
+    send_errors: u64,
+}
+
+impl<B: CanBus, P: Physics> Runner<B, P> {
+    /// The drive on `bus`; time 0 is now.
+    pub fn new(bus: B, drive: VirtualDrive<P>) -> Self {
+        Self {
+            bus,
+            drive,
+            epoch: Instant::now(),
+            send_errors: 0,
+        }
+    }
+
+    /// The drive.
+    pub fn drive(&self) -> &VirtualDrive<P> {
+        &self.drive
+    }
+
+    /// The bus's name (`udp:239.74.163.2:43113`, `vcan0`, ...).
+    pub fn interface(&self) -> &str {
+        self.bus.interface()
+    }
+
+    /// Frames that could not be sent.
+    pub fn send_errors(&self) -> u64 {
+        self.send_errors
+    }
+
+    /// Boots the drive (boot-up frame), then serves the bus until `stop` is set. Bus
+    /// reports (error frames, overruns) are logged and survived; a broken bus ends the run.
+    pub fn run(&mut self, stop: &AtomicBool) -> Result<(), RunError> {
+        self.power_on();
+        self.serve(stop)
+    }
+
+    /// Boots the drive: sends the boot-up frame.
+    pub fn power_on(&mut self) {
+        let out = self.drive.power_on(self.epoch.elapsed());
+        self.send(&out);
+    }
+
+    /// Serves the bus until `stop` is set (after [`Runner::power_on`]).
+    pub fn serve(&mut self, stop: &AtomicBool) -> Result<(), RunError> {
+        while !stop.load(Ordering::Relaxed) {
+            let now = self.epoch.elapsed();
+            let out = self.drive.tick(now);
+            self.send(&out);
+            let wait = self
+                .drive
+                .next_deadline()
+                .map_or(POLL, |d| d.saturating_sub(now).min(POLL));
+            match self.bus.recv_timeout(wait) {
+                Ok(Some(r)) => {
+                    let at = r.timestamp.saturating_duration_since(self.epoch);
+                    let out = self.drive.on_frame(&r.frame, at);
+                    self.send(&out);
+                }
+                Ok(None) => {}
+                Err(e) if e.is_report() => tracing::warn!("{e}"),
+                Err(source) => {
+                    return Err(RunError::Bus {
+                        interface: self.bus.interface().to_string(),
+                        source,
+                    })
+                }
+            }
+        }
+        Ok(())
+    }
+
+    fn send(&mut self, out: &Outputs) {
+        for f in out.iter() {
+            if let Err(e) = self.bus.send(f) {
+                self.send_errors += 1;
+                tracing::warn!("send {f}: {e}");
+            }
+        }
+    }
+}

@@ -1,0 +1,246 @@
+//! `flexid demo`: the whole job on the embedded default, over the bus. Starts the sibling
+//! `flexid-vdrive` (a CANopen CiA 402 drive in front of the plant) on the user-space UDP
+//! multicast bus in lock-step, runs `flexid sweep` against it, and compares the identified
+//! chain with the plant file. When the bus cannot be used (no sibling binary, multicast
+//! not kept on loopback and not root), it says so and measures the in-process simulation
+//! instead.
+
+use super::excite::{write_excitation, Excitation};
+use super::plant::PlantFile;
+use super::sweep::{plan, sweep_run, ClockArg, ExcitationArg, SweepArgs};
+use super::{CliError, DemoArgs};
+use crate::analysis::Analysis;
+use std::io::{BufRead, BufReader};
+use std::path::PathBuf;
+use std::process::{Child, Command, Stdio};
+use std::time::Duration;
+
+const GROUP: &str = "239.74.163.2";
+
+/// The sweep the demo runs on `plant`: line spacing a twelfth of the lowest
+/// anti-resonance, band up to 2.5 x the highest resonance (at most 0.4 x the cycle rate),
+/// amplitude rising as f (level velocity response), 8 + 1 periods, peak 2 N m, RMS 1 N m.
+pub fn demo_sweep_args(plant: &PlantFile, bus: String, out: PathBuf) -> SweepArgs {
+    let fs = plant.measurement.sample_rate_hz;
+    let ar = plant.chain.antiresonances_hz();
+    let r = plant.chain.resonances_hz();
+    let df = ar.first().map_or(1.0, |f| f / 12.0);
+    let period = ((fs / df).ceil() as usize).max(64);
+    let df = fs / period as f64;
+    let hi = r.last().map_or(0.4 * fs, |f| (2.5 * f).min(0.4 * fs));
+    SweepArgs {
+        bus,
+        node: 5,
+        cycle_hz: fs,
+        bitrate: 1_000_000,
+        clock: ClockArg::Lockstep,
+        excitation: ExcitationArg::Multisine,
+        band: Some(vec![df, hi]),
+        peak_nm: 2.0,
+        rms_nm: Some(1.0),
+        resolution_hz: df,
+        periods: 8,
+        transient_periods: 1,
+        amplitude_exponent: 1.0,
+        max_duration_s: None,
+        max_speed_rad_s: 200.0,
+        profiles: None,
+        out,
+        masses: None,
+    }
+}
+
+fn routed_to_lo() -> bool {
+    Command::new("ip")
+        .args(["route", "get", GROUP])
+        .output()
+        .is_ok_and(|o| {
+            o.status.success() && String::from_utf8_lossy(&o.stdout).contains(" dev lo ")
+        })
+}
+
+/// Keeps 239.0.0.0/8 on `lo`, setting it up when root (as flexid-can's tests do).
+fn loopback_multicast() -> Result<(), String> {
+    if routed_to_lo() {
+        return Ok(());
+    }
+    let _ = Command::new("ip")
+        .args(["link", "set", "lo", "multicast", "on"])
+        .status();
+    let _ = Command::new("ip")
+        .args(["route", "add", "239.0.0.0/8", "dev", "lo"])
+        .status();
+    if routed_to_lo() {
+        return Ok(());
+    }
+    Err(
+        "239.0.0.0/8 is not routed to lo (as root: `ip link set lo multicast on && \
+         ip route add 239.0.0.0/8 dev lo`); the demo does not send multicast onto a real network"
+            .into(),
+    )
+}
+
+/// The `flexid-vdrive` next to this executable.
+fn sibling_vdrive() -> Result<PathBuf, String> {
+    let exe = std::env::current_exe().map_err(|e| format!("current_exe: {e}"))?;
+    let dir = exe.parent().ok_or("no directory of the executable")?;
+    let bin = dir.join(format!("flexid-vdrive{}", std::env::consts::EXE_SUFFIX));
+    if bin.is_file() {
+        Ok(bin)
+    } else {
+        Err(format!(
+            "{} not found (build it: `cargo build --release --workspace`)",
+            bin.display()
+        ))
+    }
+}
+
+/// A started `flexid-vdrive`, stopped (SIGTERM, then kill) on drop.
+struct VDrive(Child);
+
+impl Drop for VDrive {
+    fn drop(&mut self) {
+        #[cfg(unix)]
+        // SAFETY: plain kill(2) of our own child.
+        unsafe {
+            libc::kill(self.0.id() as libc::pid_t, libc::SIGTERM);
+        }
+        for _ in 0..100 {
+            if let Ok(Some(_)) = self.0.try_wait() {
+                return;
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+fn start_vdrive(bin: &PathBuf, bus: &str, plant: Option<&PathBuf>) -> Result<VDrive, String> {
+    let mut cmd = Command::new(bin);
+    cmd.args(["--bus", bus, "--node", "5", "--clock", "lockstep"]);
+    if let Some(p) = plant {
+        cmd.arg("--plant").arg(p);
+    }
+    let mut child = cmd
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .map_err(|e| format!("{}: {e}", bin.display()))?;
+    let stdout = child.stdout.take().expect("piped");
+    let vd = VDrive(child);
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        let mut lines = BufReader::new(stdout).lines();
+        if let Some(Ok(l)) = lines.next() {
+            let _ = tx.send(l);
+        }
+        for _ in lines {}
+    });
+    match rx.recv_timeout(Duration::from_secs(10)) {
+        Ok(l) if l.contains("ready on") => {
+            eprintln!("flexid demo: {l}");
+            Ok(vd)
+        }
+        Ok(l) => Err(format!("flexid-vdrive: unexpected output: {l}")),
+        Err(_) => Err("flexid-vdrive did not report ready within 10 s".into()),
+    }
+}
+
+fn print_truth(an: &Analysis, plant: &PlantFile) {
+    let Some(m) = &an.model else { return };
+    println!("\nAgainst the plant file (the truth in this simulation):");
+    let truth = &plant.chain;
+    if m.masses == truth.masses() {
+        for (name, got, want) in [
+            ("J", &m.inertia_kgm2, &truth.inertia_kgm2),
+            ("c", &m.stiffness_nm_per_rad, &truth.stiffness_nm_per_rad),
+        ] {
+            for (i, (g, w)) in got.iter().zip(want).enumerate() {
+                println!(
+                    "  {name}{}: identified {g:.5e}, true {w:.5e}, error {:+.2} %",
+                    i + 1,
+                    100.0 * (g - w) / w
+                );
+            }
+        }
+    } else {
+        println!(
+            "  identified {} bodies, the plant has {}",
+            m.masses,
+            truth.masses()
+        );
+    }
+}
+
+/// `flexid demo`: over the bus when possible, else the in-process simulation.
+pub fn demo(a: &DemoArgs) -> Result<(), CliError> {
+    let plant = PlantFile::load(a.plant.as_deref()).map_err(CliError::input)?;
+    let ready = sibling_vdrive().and_then(|bin| loopback_multicast().map(|()| bin));
+    let bin = match ready {
+        Ok(bin) => bin,
+        Err(why) => {
+            eprintln!(
+                "flexid demo: the CAN bus cannot be used here: {why}.\n\
+                 flexid demo: falling back to the in-process simulation (no CANopen, no drive)."
+            );
+            return super::commands::demo_simulated(a);
+        }
+    };
+    std::fs::create_dir_all(&a.out)
+        .map_err(|e| CliError::failed(format!("{}: {e}", a.out.display())))?;
+    // Its own port, so that demos and tests can run side by side.
+    let port = 43300 + (std::process::id() % 600) as u16;
+    let bus = format!("udp:{GROUP}:{port}");
+    let mut args = demo_sweep_args(&plant, bus.clone(), a.out.clone());
+    if let Err(e) = super::sweep::admit(args.cycle_hz, args.bitrate) {
+        // The user-space bus has no bit timing: declare a bitrate that admits the cycle,
+        // and say so.
+        args.bitrate = 2_000_000;
+        eprintln!(
+            "flexid demo: note: {}\nflexid demo: the user-space UDP bus is not bit-timed: the \
+             demo declares {} bit/s; on a classic CAN bus this plant's {} Hz cycle is refused",
+            e.message, args.bitrate, args.cycle_hz
+        );
+    }
+    let p = plan(&args)?;
+    let exc_path = a.out.join("excitation.csv");
+    write_excitation(
+        &exc_path,
+        args.cycle_hz,
+        &Excitation {
+            torque_nm: p.torque_nm.clone(),
+            info: p.excitation.clone(),
+        },
+    )?;
+    eprintln!(
+        "flexid demo: {} — flexid-vdrive (CiA 402 over CANopen) on {bus}, lock-step",
+        plant.name.as_deref().unwrap_or("plant")
+    );
+    let vd = match start_vdrive(&bin, &bus, a.plant.as_ref()) {
+        Ok(v) => v,
+        Err(why) => {
+            eprintln!(
+                "flexid demo: the simulated drive could not be started: {why}.\n\
+                 flexid demo: falling back to the in-process simulation (no CANopen, no drive)."
+            );
+            return super::commands::demo_simulated(a);
+        }
+    };
+    let run = sweep_run(&args);
+    drop(vd);
+    let run = run?;
+    if let Some(an) = &run.analysis {
+        print_truth(an, &plant);
+    }
+    println!(
+        "\nmeasured over CANopen in lock-step: {} cycles at {:.0} cycles/s\nwrote {}, {}, {} and {}",
+        run.outcome.recording.len(),
+        run.outcome.cycles_per_s(),
+        exc_path.display(),
+        run.recording_path.display(),
+        a.out.join("result.json").display(),
+        a.out.join("bode.svg").display()
+    );
+    Ok(())
+}

@@ -1,0 +1,483 @@
+//! `flexid sweep`: one measurement on one axis over CAN, from bring-up to the identified
+//! chain. The logic is in [`crate::sweep`]; this is argument handling, the bus and files.
+
+use super::excite::{generate, ExciteArgs, ExciteKind, MultisineArgs};
+use super::{CliError, ModelArgs};
+use crate::recording::{write_recording, DriveInfo};
+use crate::sweep::{admission_check, run_sweep, Pacing, Progress, SweepOutcome, SweepPlan};
+use clap::{Args, ValueEnum};
+use flexid_can::{CanBus, UdpConfig, UdpMulticastBus};
+use flexid_canopen::{bring_up, MasterConfig, ProfileSet};
+use std::net::IpAddr;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+/// Pacing of the cycles.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ClockArg {
+    /// Absolute deadlines at the cycle rate (a real drive).
+    Realtime,
+    /// Next cycle as soon as the feedback is in (a simulated drive in lock-step).
+    Lockstep,
+}
+
+/// The excitation signal.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ExcitationArg {
+    /// Periodic Schroeder multisine (as `flexid excite multisine`).
+    Multisine,
+    /// Logarithmic swept sine (as `flexid excite chirp`).
+    Chirp,
+}
+
+/// `flexid sweep` (a contract: a daemon accepts the same flags).
+#[derive(Debug, Args, Clone)]
+pub struct SweepArgs {
+    /// The bus: `udp[:GROUP[:PORT]]` (user-space UDP multicast), `vcan0` or
+    /// `socketcan:IFACE`.
+    #[arg(long)]
+    pub bus: String,
+    /// The drive's CANopen node-id.
+    #[arg(long, default_value_t = 5)]
+    pub node: u8,
+    /// Cycle (SYNC) rate [Hz]; the recording's sample rate.
+    #[arg(long, default_value_t = 1000.0)]
+    pub cycle_hz: f64,
+    /// Bus bitrate [bit/s], for the bus-load admission check.
+    #[arg(long, default_value_t = 1_000_000)]
+    pub bitrate: u32,
+    /// Pacing: realtime (absolute deadlines) or lockstep (simulated drive).
+    #[arg(long, value_enum, default_value = "realtime")]
+    pub clock: ClockArg,
+    /// Excitation signal.
+    #[arg(long, value_enum, default_value = "multisine")]
+    pub excitation: ExcitationArg,
+    /// Excited band [Hz] (default: from the resolution up to 0.4 x the cycle rate).
+    #[arg(long, num_args = 2, value_names = ["LO_HZ", "HI_HZ"])]
+    pub band: Option<Vec<f64>>,
+    /// Peak torque [N m].
+    #[arg(long, default_value_t = 0.5)]
+    pub peak_nm: f64,
+    /// RMS torque limit [N m] (default: no tighter than the peak allows).
+    #[arg(long)]
+    pub rms_nm: Option<f64>,
+    /// Frequency resolution [Hz]: the multisine's line spacing (period = cycle rate /
+    /// resolution); for a chirp, 1 / resolution is the duration of one "period".
+    #[arg(long, default_value_t = 0.5)]
+    pub resolution_hz: f64,
+    /// Steady periods recorded (averaged).
+    #[arg(long, default_value_t = 8)]
+    pub periods: usize,
+    /// Leading periods discarded (transient).
+    #[arg(long, default_value_t = 1)]
+    pub transient_periods: usize,
+    /// Multisine amplitude grows as f^exponent over the band (0 = flat, as `flexid excite`).
+    #[arg(long, default_value_t = 0.0)]
+    pub amplitude_exponent: f64,
+    /// Stop after this many seconds of wall time (default: 3 x the planned duration + 10 s).
+    #[arg(long)]
+    pub max_duration_s: Option<f64>,
+    /// Stop when the motor speed exceeds this [rad/s].
+    #[arg(long, default_value_t = 100.0)]
+    pub max_speed_rad_s: f64,
+    /// More firmware profiles (a directory of TOML files) besides the built-in ones.
+    #[arg(long)]
+    pub profiles: Option<PathBuf>,
+    /// Output folder: recording.csv/.json, result.json, bode.svg.
+    #[arg(long, default_value = "out/sweep")]
+    pub out: PathBuf,
+    /// Number of bodies of the chain (motor first); chosen automatically when absent.
+    #[arg(long)]
+    pub masses: Option<usize>,
+}
+
+/// Set by SIGINT/SIGTERM during a sweep.
+static STOP: AtomicBool = AtomicBool::new(false);
+
+#[cfg(unix)]
+extern "C" fn on_signal(_: libc::c_int) {
+    STOP.store(true, Ordering::Relaxed);
+}
+
+fn install_signal_handlers() {
+    STOP.store(false, Ordering::Relaxed);
+    #[cfg(unix)]
+    // SAFETY: the handler only stores to an atomic (async-signal-safe).
+    unsafe {
+        libc::signal(libc::SIGINT, on_signal as *const () as libc::sighandler_t);
+        libc::signal(libc::SIGTERM, on_signal as *const () as libc::sighandler_t);
+    }
+}
+
+/// Which bus `--bus` names.
+#[derive(Debug, Clone, PartialEq)]
+pub enum BusSpec {
+    /// User-space UDP multicast (python-can `udp_multicast` compatible).
+    Udp(UdpConfig),
+    /// A SocketCAN interface.
+    SocketCan(String),
+}
+
+impl BusSpec {
+    /// Parse `udp[:GROUP[:PORT]]`, `socketcan:IFACE`, or a bare SocketCAN interface name
+    /// (`vcan0`, `can1`).
+    pub fn parse(s: &str) -> Result<Self, String> {
+        if let Some(iface) = s.strip_prefix("socketcan:") {
+            if iface.is_empty() {
+                return Err("--bus socketcan:IFACE needs an interface".into());
+            }
+            return Ok(BusSpec::SocketCan(iface.into()));
+        }
+        let Some(rest) = s.strip_prefix("udp") else {
+            if !s.is_empty() && s.chars().all(|c| c.is_ascii_alphanumeric() || c == '_') {
+                return Ok(BusSpec::SocketCan(s.into()));
+            }
+            return Err(format!(
+                "--bus {s}: expected udp[:GROUP[:PORT]], vcan0 or socketcan:IFACE"
+            ));
+        };
+        if rest.is_empty() {
+            return Ok(BusSpec::Udp(UdpConfig::default()));
+        }
+        let bad = || format!("--bus {s}: expected udp[:GROUP[:PORT]] (IPv6: udp:[GROUP]:PORT)");
+        let rest = rest.strip_prefix(':').ok_or_else(bad)?;
+        let (group, port) = if let Some(r) = rest.strip_prefix('[') {
+            let (g, p) = r.split_once(']').ok_or_else(bad)?;
+            (g, p.strip_prefix(':'))
+        } else if rest.parse::<IpAddr>().is_ok() {
+            (rest, None)
+        } else {
+            match rest.rsplit_once(':') {
+                Some((g, p)) => (g, Some(p)),
+                None => (rest, None),
+            }
+        };
+        let group: IpAddr = group.parse().map_err(|_| bad())?;
+        if !group.is_multicast() {
+            return Err(format!("--bus {s}: {group} is not a multicast group"));
+        }
+        let mut cfg = UdpConfig::group(group);
+        if let Some(p) = port {
+            cfg.port = p.parse().map_err(|_| bad())?;
+        }
+        Ok(BusSpec::Udp(cfg))
+    }
+
+    /// How it is written in `--bus`.
+    pub fn describe(&self) -> String {
+        match self {
+            BusSpec::Udp(c) => match c.group {
+                IpAddr::V4(g) => format!("udp:{g}:{}", c.port),
+                IpAddr::V6(g) => format!("udp:[{g}]:{}", c.port),
+            },
+            BusSpec::SocketCan(i) => format!("socketcan:{i}"),
+        }
+    }
+}
+
+fn pacing(c: ClockArg) -> Pacing {
+    match c {
+        ClockArg::Realtime => Pacing::Realtime,
+        ClockArg::Lockstep => Pacing::Lockstep,
+    }
+}
+
+/// Checks the arguments and plans the sweep: the excitation exactly as `flexid excite`
+/// designs and describes it, the limits from the flags. Exit code 2 on bad arguments.
+pub fn plan(a: &SweepArgs) -> Result<SweepPlan, CliError> {
+    let fs = a.cycle_hz;
+    if !(fs.is_finite() && fs > 0.0) {
+        return Err(CliError::input(format!(
+            "--cycle-hz {fs}: must be a positive rate"
+        )));
+    }
+    if !(a.resolution_hz.is_finite() && a.resolution_hz > 0.0 && a.resolution_hz < fs / 4.0) {
+        return Err(CliError::input(format!(
+            "--resolution-hz {}: must be positive and below a quarter of the cycle rate",
+            a.resolution_hz
+        )));
+    }
+    if a.periods == 0 {
+        return Err(CliError::input("--periods must be at least 1"));
+    }
+    if !(a.peak_nm.is_finite() && a.peak_nm > 0.0) {
+        return Err(CliError::input(format!(
+            "--peak-nm {}: must be positive",
+            a.peak_nm
+        )));
+    }
+    if !(a.max_speed_rad_s > 0.0) {
+        return Err(CliError::input("--max-speed-rad-s must be positive"));
+    }
+    let band = match &a.band {
+        None => [a.resolution_hz, 0.4 * fs],
+        Some(b) if b.len() == 2 && b[0] > 0.0 && b[1] > b[0] && b[1] < fs / 2.0 => [b[0], b[1]],
+        Some(b) => {
+            return Err(CliError::input(format!(
+                "--band {b:?}: need 0 < LO_HZ < HI_HZ < cycle rate / 2"
+            )))
+        }
+    };
+    let kind = match a.excitation {
+        ExcitationArg::Multisine => ExciteKind::Multisine(MultisineArgs {
+            period_samples: (fs / a.resolution_hz).round() as usize,
+            band: band.to_vec(),
+            phases: "schroeder".into(),
+            group: 4,
+            seed: 1,
+            amplitude_exponent: a.amplitude_exponent,
+            crest_iterations: 30,
+            periods: a.periods,
+            transient_periods: a.transient_periods,
+        }),
+        ExcitationArg::Chirp => ExciteKind::Chirp(super::excite::ChirpArgs {
+            f0: band[0],
+            f1: band[1],
+            duration_s: (a.periods + a.transient_periods) as f64 / a.resolution_hz,
+            taper_s: 0.0,
+        }),
+    };
+    let ex = generate(&ExciteArgs {
+        kind,
+        out: None,
+        fs,
+        peak_nm: a.peak_nm,
+        rms_nm: a.rms_nm,
+    })?;
+    let mut p = SweepPlan::new(fs, ex.torque_nm, ex.info, pacing(a.clock));
+    p.max_speed_rad_s = a.max_speed_rad_s;
+    if let Some(d) = a.max_duration_s {
+        if !(d.is_finite() && d > 0.0) {
+            return Err(CliError::input(format!(
+                "--max-duration-s {d}: must be positive"
+            )));
+        }
+        p.max_duration = Some(Duration::from_secs_f64(d));
+    }
+    Ok(p)
+}
+
+/// The admission check as the command reports it (exit code 2 when refused).
+pub fn admit(cycle_hz: f64, bitrate: u32) -> Result<f64, CliError> {
+    admission_check(cycle_hz, bitrate)
+        .map_err(|e| CliError::input(format!("refused before touching the bus: {e}")))
+}
+
+fn progress_line(p: &Progress) {
+    let c = p.counters;
+    if p.periods_total > 0 {
+        eprint!(
+            "flexid sweep: period {}/{}",
+            p.periods_done, p.periods_total
+        );
+    } else {
+        eprint!("flexid sweep: cycle {}/{}", p.cycle, p.total);
+    }
+    eprintln!(
+        ", {:.2} s, {:.0} cycles/s; feedback missed {} (late {}, lost {}), clamped {}",
+        p.elapsed.as_secs_f64(),
+        p.cycle as f64 / p.elapsed.as_secs_f64().max(1e-9),
+        c.missed,
+        c.late,
+        c.lost,
+        c.saturated
+    );
+}
+
+/// What `sweep` produced (for the demo).
+pub struct SweepRun {
+    /// The measurement.
+    pub outcome: SweepOutcome,
+    /// Where the recording was written.
+    pub recording_path: PathBuf,
+    /// The identification (complete sweeps only).
+    pub analysis: Option<crate::analysis::Analysis>,
+}
+
+/// Brings the drive up on `bus`, runs the plan, disables the drive and saves the
+/// recording. Returns the outcome whatever happened after enable; errors before
+/// (bring-up, enable) are returned as errors.
+fn measure<B: CanBus>(
+    bus: B,
+    a: &SweepArgs,
+    plan: &SweepPlan,
+    bus_name: &str,
+    profiles: &ProfileSet,
+) -> Result<(SweepOutcome, DriveInfo), CliError> {
+    let cfg = MasterConfig {
+        node: a.node,
+        cycle_period: plan.period(),
+        bitrate: a.bitrate,
+        ..MasterConfig::for_node(a.node)
+    };
+    eprintln!(
+        "flexid sweep: bringing up node {} on {bus_name} ({} Hz cycle) ...",
+        a.node, a.cycle_hz
+    );
+    let drive = bring_up(bus, cfg, profiles)
+        .map_err(|e| CliError::failed(format!("bring-up failed: {e}")))?;
+    let id = *drive.identity();
+    let profile = drive.profile();
+    let info = DriveInfo {
+        bus: bus_name.to_string(),
+        node: a.node,
+        device_type: id.device_type,
+        vendor_id: id.vendor_id,
+        product_code: id.product_code,
+        revision: id.revision,
+        serial: id.serial,
+        profile: format!("{} ({})", profile.name, profile.source),
+        rated_torque_nm: drive.scaling().rated_torque_nm,
+        cycle_hz: a.cycle_hz,
+        clock: plan.pacing.name().into(),
+    };
+    eprintln!(
+        "flexid sweep: node {} vendor {:#010x} product {:#x} rev {:#x}, profile {}, rated torque {} N m",
+        a.node, id.vendor_id, id.product_code, id.revision, info.profile, info.rated_torque_nm
+    );
+    let mut drive = drive
+        .enable()
+        .map_err(|e| CliError::failed(format!("enable failed: {e}")))?;
+    let outcome = run_sweep(&mut drive, plan, &STOP, &mut progress_line);
+    if let Some(e) = &outcome.ramp_error {
+        eprintln!("flexid sweep: ramp to zero torque interrupted: {e}");
+    }
+    match drive.disable() {
+        Ok(_) => eprintln!("flexid sweep: drive disabled"),
+        Err(e) => eprintln!("flexid sweep: disabling the drive failed (best effort): {e}"),
+    }
+    Ok((outcome, info))
+}
+
+/// Saves the outcome's recording (with `info`) into `out`; prints how it ended.
+fn save(outcome: &mut SweepOutcome, info: DriveInfo, out: &Path) -> Result<PathBuf, CliError> {
+    outcome.recording.sidecar.drive = Some(info);
+    std::fs::create_dir_all(out)
+        .map_err(|e| CliError::failed(format!("{}: {e}", out.display())))?;
+    let path = out.join("recording.csv");
+    write_recording(&path, &outcome.recording).map_err(|e| CliError::failed(e.to_string()))?;
+    let c = outcome.counters;
+    eprintln!(
+        "flexid sweep: {} rows in {:.2} s ({:.0} cycles/s), feedback missed {} (late {}, lost {}), clamped {}; wrote {}",
+        outcome.recording.len(),
+        outcome.elapsed.as_secs_f64(),
+        outcome.cycles_per_s(),
+        c.missed,
+        c.late,
+        c.lost,
+        c.saturated,
+        path.display()
+    );
+    Ok(path)
+}
+
+/// The measurement and identification; `identify` false stops after saving.
+pub fn sweep_run(a: &SweepArgs) -> Result<SweepRun, CliError> {
+    let spec = BusSpec::parse(&a.bus).map_err(CliError::input)?;
+    if !(1..=127).contains(&a.node) {
+        return Err(CliError::input(format!(
+            "--node {}: must be 1..=127",
+            a.node
+        )));
+    }
+    if let Some(m) = a.masses {
+        if m == 0 {
+            return Err(CliError::input("--masses must be at least 1"));
+        }
+    }
+    let load = admit(a.cycle_hz, a.bitrate)?;
+    let plan = plan(a)?;
+    let mut profiles = ProfileSet::builtin();
+    if let Some(dir) = &a.profiles {
+        profiles
+            .load_dir(dir)
+            .map_err(|e| CliError::input(e.to_string()))?;
+    }
+    let info = &plan.excitation;
+    eprintln!(
+        "flexid sweep: {:?} {} lines {:.3}-{:.1} Hz, {} + {} periods of {} cycles at {} Hz ({:.1} s), peak {:.3} N m; bus load {:.1} % at {} bit/s; clock {}",
+        info.kind,
+        info.excited_lines.len(),
+        info.band_hz.map_or(0.0, |b| b[0]),
+        info.band_hz.map_or(0.0, |b| b[1]),
+        info.transient_periods,
+        info.periods,
+        info.period_samples,
+        a.cycle_hz,
+        plan.duration_s(),
+        crate::excitation::peak_abs(&plan.torque_nm),
+        100.0 * load,
+        a.bitrate,
+        plan.pacing.name()
+    );
+    install_signal_handlers();
+    let name = spec.describe();
+    let (mut outcome, drive_info) = match &spec {
+        BusSpec::Udp(cfg) => {
+            let bus = UdpMulticastBus::open(cfg.clone())
+                .map_err(|e| CliError::failed(format!("{name}: {e}")))?;
+            measure(bus, a, &plan, &name, &profiles)?
+        }
+        #[cfg(target_os = "linux")]
+        BusSpec::SocketCan(iface) => {
+            let bus = flexid_can::SocketCanBus::open(iface)
+                .map_err(|e| CliError::failed(format!("{name}: {e}")))?;
+            measure(bus, a, &plan, &name, &profiles)?
+        }
+        #[cfg(not(target_os = "linux"))]
+        BusSpec::SocketCan(_) => return Err(CliError::input("SocketCAN is Linux only")),
+    };
+    let recording_path = save(&mut outcome, drive_info, &a.out)?;
+    if !outcome.complete() {
+        return Err(CliError::failed(format!(
+            "sweep stopped at cycle {}: {}; the {} rows measured are saved in {} (not identified)",
+            outcome.end.cycle,
+            outcome.end.reason,
+            outcome.recording.len(),
+            recording_path.display()
+        )));
+    }
+    let analysis = identify_outcome(&outcome, &recording_path, a.masses, &a.out)?;
+    Ok(SweepRun {
+        outcome,
+        recording_path,
+        analysis: Some(analysis),
+    })
+}
+
+/// The identification of `flexid identify` on a complete sweep: prints the table, writes
+/// `result.json` and `bode.svg` into `out`.
+pub fn identify_outcome(
+    outcome: &SweepOutcome,
+    recording_path: &Path,
+    masses: Option<usize>,
+    out: &Path,
+) -> Result<crate::analysis::Analysis, CliError> {
+    let opts = super::commands::options(&ModelArgs {
+        masses,
+        band: None,
+        starts: 20,
+        seed: 1,
+    })?;
+    let t = Instant::now();
+    let an = super::commands::run_analysis(&outcome.recording, &opts)?;
+    let title = recording_path.display().to_string();
+    print!("{}", crate::analysis::render_report(&an, &title));
+    let json = out.join("result.json");
+    let svg = out.join("bode.svg");
+    super::commands::write_json(&an, &json)?;
+    super::commands::write_svg(&an, &title, &svg)?;
+    eprintln!(
+        "flexid sweep: identified in {:.1} s; wrote {} and {}",
+        t.elapsed().as_secs_f64(),
+        json.display(),
+        svg.display()
+    );
+    Ok(an)
+}
+
+/// `flexid sweep`.
+pub fn sweep(a: &SweepArgs) -> Result<(), CliError> {
+    sweep_run(a).map(|_| ())
+}

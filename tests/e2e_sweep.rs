@@ -1,0 +1,266 @@
+//! End to end over the user-space UDP multicast bus: the real `flexid-vdrive` (a CANopen
+//! CiA 402 drive in front of plants/e2e_3mass.toml, lock-step) and the real
+//! `flexid sweep`. Skipped when 239.0.0.0/8 cannot be kept on `lo` (fails under CI=true).
+
+mod e2e;
+use e2e::*;
+
+use std::io::{BufRead, BufReader};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+const GROUP: &str = "239.74.163.2";
+
+fn bus(port: u16) -> String {
+    format!("udp:{GROUP}:{port}")
+}
+
+#[test]
+fn sweep_over_udp_identifies_the_plant() {
+    if !loopback_multicast() {
+        return;
+    }
+    let plant = plant_path();
+    let bus = bus(43221);
+    let _vd = VDrive::start(&bus, &plant);
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("sweep");
+    let t = Instant::now();
+    let o = flexid(
+        &[
+            "sweep",
+            "--bus",
+            &bus,
+            "--node",
+            "5",
+            "--cycle-hz",
+            "1000",
+            "--clock",
+            "lockstep",
+            "--resolution-hz",
+            "0.5",
+            "--periods",
+            "8",
+            "--masses",
+            "3",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        Duration::from_secs(300),
+    );
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        o.status.success(),
+        "{:?}\nstderr:\n{stderr}\nstdout:\n{stdout}",
+        o.status
+    );
+    eprintln!(
+        "sweep + identification in {:.1} s; lock-step over UDP: {:?} cycles/s",
+        t.elapsed().as_secs_f64(),
+        cycles_per_s(&stderr)
+    );
+    assert_eq!(rows(&out), 9 * 2000);
+    let sc = sidecar(&out);
+    assert_eq!(sc["end"]["complete"], true, "{sc}");
+    assert_eq!(sc["end"]["cycle"], 18000);
+    assert_eq!(sc["excitation"]["kind"], "multisine");
+    assert_eq!(sc["excitation"]["period_samples"], 2000);
+    assert_eq!(sc["drive"]["node"], 5);
+    assert_eq!(sc["drive"]["vendor_id"], 0xF1D);
+    assert_eq!(sc["drive"]["clock"], "lockstep");
+    assert!(
+        sc["drive"]["profile"].as_str().unwrap().contains("vdrive"),
+        "{sc}"
+    );
+    assert!(sc["cycle_counters"]["cycles"].as_u64().unwrap() > 18000);
+    assert!(out.join("bode.svg").is_file());
+    assert!(stdout.contains("J1"), "{stdout}");
+    assert_identified(&out, &plant, 0.03);
+}
+
+/// Starts `flexid sweep` (long: 40 periods) and returns it once it has reported its first
+/// period on stderr, with the rest of stderr collected by a thread.
+fn start_long_sweep(
+    bus: &str,
+    out: &std::path::Path,
+    extra: &[&str],
+) -> (std::process::Child, std::thread::JoinHandle<String>) {
+    let mut child = Command::new(FLEXID)
+        .args([
+            "sweep",
+            "--bus",
+            bus,
+            "--node",
+            "5",
+            "--cycle-hz",
+            "1000",
+            "--clock",
+            "lockstep",
+            "--periods",
+            "40",
+            "--out",
+            out.to_str().unwrap(),
+        ])
+        .args(extra)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let err = child.stderr.take().unwrap();
+    let (tx, rx) = std::sync::mpsc::channel();
+    let h = std::thread::spawn(move || {
+        let mut all = String::new();
+        let mut sent = false;
+        for l in BufReader::new(err).lines().map_while(Result::ok) {
+            if !sent && l.contains("period 1/") {
+                let _ = tx.send(());
+                sent = true;
+            }
+            all.push_str(&l);
+            all.push('\n');
+        }
+        all
+    });
+    let _ = rx.recv_timeout(Duration::from_secs(60));
+    (child, h)
+}
+
+fn wait(child: &mut std::process::Child, limit: Duration) -> std::process::ExitStatus {
+    let end = Instant::now() + limit;
+    loop {
+        if let Some(s) = child.try_wait().unwrap() {
+            return s;
+        }
+        if Instant::now() > end {
+            let _ = child.kill();
+            panic!("flexid sweep did not stop within {limit:?}");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+#[test]
+fn drive_killed_mid_sweep_keeps_the_partial_recording() {
+    if !loopback_multicast() {
+        return;
+    }
+    let bus = bus(43222);
+    let mut vd = VDrive::start(&bus, &plant_path());
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("killed");
+    let (mut child, h) = start_long_sweep(&bus, &out, &[]);
+    vd.kill();
+    let status = wait(&mut child, Duration::from_secs(60));
+    let stderr = h.join().unwrap();
+    assert_eq!(status.code(), Some(1), "{stderr}");
+    let sc = sidecar(&out);
+    let end = &sc["end"];
+    assert_eq!(end["complete"], false, "{sc}");
+    let reason = end["reason"].as_str().unwrap();
+    assert!(reason.starts_with("feedback lost"), "{reason}");
+    let n = rows(&out);
+    assert!(n >= 2000 && n < 41 * 2000, "{n} rows");
+    assert_eq!(end["cycle"].as_u64().unwrap() as usize, n, "{sc}");
+    assert!(stderr.contains("sweep stopped at cycle"), "{stderr}");
+    assert!(!out.join("result.json").exists());
+}
+
+#[test]
+fn drive_fault_mid_sweep_is_reported_and_saved() {
+    if !loopback_multicast() {
+        return;
+    }
+    // The same plant with a drive that trips on overspeed (EMCY 0x8400) almost at once.
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(plant_path())
+        .unwrap()
+        .replace("max_speed_rad_s = 314.0", "max_speed_rad_s = 0.02");
+    assert!(text.contains("max_speed_rad_s = 0.02"));
+    let plant = dir.path().join("tripping.toml");
+    std::fs::write(&plant, text).unwrap();
+    let bus = bus(43223);
+    let _vd = VDrive::start(&bus, &plant);
+    let out = dir.path().join("fault");
+    let o = flexid(
+        &[
+            "sweep",
+            "--bus",
+            &bus,
+            "--node",
+            "5",
+            "--clock",
+            "lockstep",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        Duration::from_secs(120),
+    );
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{stderr}");
+    let sc = sidecar(&out);
+    let reason = sc["end"]["reason"].as_str().unwrap();
+    assert!(
+        reason.starts_with("drive fault:") && reason.contains("0x8400"),
+        "{reason}"
+    );
+    assert_eq!(sc["end"]["cycle"].as_u64().unwrap() as usize, rows(&out));
+    assert!(stderr.contains("drive fault"), "{stderr}");
+}
+
+#[test]
+fn bus_load_refused_before_touching_the_bus() {
+    let o = flexid(
+        &[
+            "sweep",
+            "--bus",
+            "udp:239.74.163.2:43224",
+            "--cycle-hz",
+            "4000",
+        ],
+        Duration::from_secs(30),
+    );
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("lower the cycle rate to at most"),
+        "{stderr}"
+    );
+}
+
+#[test]
+fn ctrl_c_mid_sweep_ramps_down_disables_and_saves() {
+    if !loopback_multicast() {
+        return;
+    }
+    let bus = bus(43225);
+    let _vd = VDrive::start(&bus, &plant_path());
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("interrupted");
+    let (mut child, h) = start_long_sweep(&bus, &out, &[]);
+    let st = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(st.success());
+    let status = wait(&mut child, Duration::from_secs(60));
+    let stderr = h.join().unwrap();
+    assert_eq!(status.code(), Some(1), "{stderr}");
+    let sc = sidecar(&out);
+    assert_eq!(sc["end"]["complete"], false, "{sc}");
+    assert!(
+        sc["end"]["reason"]
+            .as_str()
+            .unwrap()
+            .starts_with("interrupted"),
+        "{sc}"
+    );
+    let n = rows(&out);
+    assert_eq!(sc["end"]["cycle"].as_u64().unwrap() as usize, n);
+    // the ramp to zero ran after the last recorded row, and the drive was disabled
+    assert!(
+        sc["cycle_counters"]["cycles"].as_u64().unwrap() > n as u64,
+        "{sc}"
+    );
+    assert!(stderr.contains("drive disabled"), "{stderr}");
+}

@@ -142,6 +142,11 @@ impl AbortSignal {
         self.flag.load(Ordering::Acquire)
     }
 
+    /// The flag itself, for loops that poll an `AtomicBool` (e.g. `crate::sweep::run_sweep`).
+    pub fn flag(&self) -> &AtomicBool {
+        &self.flag
+    }
+
     /// The reason given to [`abort`](Self::abort).
     pub fn reason(&self) -> Option<String> {
         self.reason.lock().ok().and_then(|r| r.clone())
@@ -161,7 +166,8 @@ pub struct SweepHandle {
 ///
 /// `start` must return quickly (spawn the cycle loop on its own thread) and must not move
 /// the motor when it returns an error. Implementations: [`super::sim_backend::SimBackend`]
-/// (a simulated chain); the CANopen sweep (`crate::sweep`) once merged.
+/// (a simulated chain) and [`super::canopen_backend::CanopenBackend`] (the CANopen sweep,
+/// `crate::sweep`, on CiA 402 drives).
 pub trait AxisBackend: Send + Sync + 'static {
     /// Start `plan` on `axis`.
     fn start(&self, axis: &AxisConfig, plan: SweepPlan) -> Result<SweepHandle, BackendError>;

@@ -8,7 +8,8 @@
 //! * [`token`]: the bearer token file (mode 0600/0400, owner) and constant-time compare;
 //! * [`request`]: sweep requests, validated against the axis limits, and their plan;
 //! * [`backend`]: the [`AxisBackend`] seam to what drives the motor;
-//!   [`sim_backend`] simulates a chain behind it;
+//!   [`sim_backend`] simulates a chain behind it, [`canopen_backend`] drives CiA 402
+//!   drives with the sweep library;
 //! * [`store`]: the results store (atomic files, per-period fsynced recording,
 //!   `interrupted` after a crash);
 //! * [`service`], [`runner`], [`hub`]: the sweeps' life cycle and event fan-out;
@@ -18,6 +19,7 @@
 
 pub mod api;
 pub mod backend;
+pub mod canopen_backend;
 pub mod config;
 pub mod hub;
 pub mod logging;

@@ -61,9 +61,18 @@ pub fn backend_from_config(cfg: &Config) -> Result<Arc<dyn AxisBackend>, DaemonE
             tracing::warn!("backend: simulated ({}); no motor is driven", b.name);
             Ok(Arc::new(b))
         }
-        BackendKind::Canopen => Err(DaemonError::Backend(
-            "backend.kind: \"canopen\" is not available in this build yet (the CANopen sweep is not wired); use \"simulated\"".into(),
-        )),
+        BackendKind::Canopen => {
+            for (i, a) in cfg.axis.iter().enumerate() {
+                let bus = cfg.bus.iter().find(|b| b.name == a.bus);
+                if let Some(b) = bus {
+                    crate::sweep::admission_check(a.cycle_hz, b.bitrate)
+                        .map_err(|e| DaemonError::Backend(format!("axis[{i}].cycle_hz: {e}")))?;
+                }
+            }
+            Ok(Arc::new(super::canopen_backend::CanopenBackend::new(
+                &cfg.bus,
+            )))
+        }
     }
 }
 

@@ -189,10 +189,19 @@ pub struct Sse {
 pub async fn read_events(
     d: &TestDaemon,
     id: &str,
+    stop_after: impl FnMut(&Sse) -> bool,
+) -> Vec<Sse> {
+    read_events_at(&d.url(""), id, stop_after).await
+}
+
+/// [`read_events`] against a daemon at `base` (`http://ADDR`).
+pub async fn read_events_at(
+    base: &str,
+    id: &str,
     mut stop_after: impl FnMut(&Sse) -> bool,
 ) -> Vec<Sse> {
     use futures_util::StreamExt;
-    let r = auth(client().get(d.url(&format!("/api/v1/sweeps/{id}/events"))))
+    let r = auth(client().get(format!("{base}/api/v1/sweeps/{id}/events")))
         .send()
         .await
         .unwrap();

@@ -52,13 +52,11 @@ fn invalid_configuration_is_refused_naming_the_key() {
     let text = std::fs::read_to_string(&p).unwrap();
     let cases = [
         (
-            text.replacen("peak_torque_nm = 1.0", "peak_torque_nm = 1.0", 1)
-                .rsplitn(2, "peak_torque_nm = 1.0")
-                .collect::<Vec<_>>()
-                .into_iter()
-                .rev()
-                .collect::<Vec<_>>()
-                .join("peak_torque_nm = 0"),
+            {
+                // the second axis's peak torque
+                let i = text.rfind("peak_torque_nm = 1.0").unwrap();
+                format!("{}peak_torque_nm = 0{}", &text[..i], &text[i + 20..])
+            },
             "flexid.toml: axis[1].limits.peak_torque_nm: must be > 0",
         ),
         (

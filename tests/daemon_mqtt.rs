@@ -80,10 +80,10 @@ async fn read_retained(port: u16, topic: &str) -> serde_json::Value {
     client.subscribe(topic, QoS::AtLeastOnce).await.unwrap();
     let deadline = tokio::time::Instant::now() + Duration::from_secs(15);
     loop {
-        let ev = tokio::time::timeout_at(deadline, el.poll())
-            .await
-            .unwrap_or_else(|_| panic!("no retained message on {topic}"))
-            .unwrap();
+        let Ok(ev) = tokio::time::timeout_at(deadline, el.poll()).await else {
+            panic!("no retained message on {topic}");
+        };
+        let ev = ev.unwrap();
         if let Event::Incoming(Packet::Publish(p)) = ev {
             assert!(p.retain, "{topic}: not retained");
             assert_eq!(p.topic, topic);

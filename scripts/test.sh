@@ -21,6 +21,16 @@ rustc --version
 step "python peers for the interop tests (python-can, msgpack) and loopback multicast"
 scripts/pyenv-interop.sh
 
+step "mosquitto for the MQTT test (tests/daemon_mqtt.rs)"
+if command -v mosquitto >/dev/null 2>&1 || [ -x /usr/sbin/mosquitto ]; then
+    echo "mosquitto: present"
+elif [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then
+    export DEBIAN_FRONTEND=noninteractive
+    apt-get install -y -q mosquitto || { apt-get update -q && apt-get install -y -q mosquitto; }
+else
+    echo "mosquitto: missing and not root: the MQTT test skips (and fails under CI=true)"
+fi
+
 step "build (release, once for every stage)"
 cargo build --release --workspace --all-targets
 

@@ -15,6 +15,7 @@
 //! * [`plot`]: Bode plots as SVG.
 //! * [`import`]: MAT v5 and DaISy files into recordings.
 //! * [`sim`]: simulated recordings of chains (exact ZOH sampling, noise, quantisation).
+//! * [`daemon`]: `flexid daemon`, the identification service (HTTP API, results store, MQTT).
 //! * [`plant`]: the physics plant of the simulated drive: the chain with unmodelled
 //!   effects (friction, backlash, delay, current loop, ...), a fine-step simulator.
 //! * [`rt`]: the real-time cycle thread (absolute-deadline pacing, `SCHED_FIFO`/`mlockall`
@@ -27,6 +28,7 @@
 
 pub mod analysis;
 pub mod cli;
+pub mod daemon;
 pub mod excitation;
 pub mod frf;
 pub mod identify;

@@ -4,14 +4,12 @@ use clap::Parser;
 use std::process::ExitCode;
 
 fn main() -> ExitCode {
-    tracing_subscriber::fmt()
-        .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_env("FLEXID_LOG")
-                .unwrap_or_else(|_| "warn".into()),
-        )
-        .with_writer(std::io::stderr)
-        .init();
     let cli = flexid::cli::Cli::parse();
+    if matches!(cli.command, flexid::cli::Command::Daemon(_)) {
+        flexid::daemon::logging::init();
+    } else {
+        init_stderr_log();
+    }
     match flexid::cli::run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
@@ -19,4 +17,14 @@ fn main() -> ExitCode {
             ExitCode::from(e.code)
         }
     }
+}
+
+fn init_stderr_log() {
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_env("FLEXID_LOG")
+                .unwrap_or_else(|_| "warn".into()),
+        )
+        .with_writer(std::io::stderr)
+        .init();
 }

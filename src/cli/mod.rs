@@ -43,6 +43,15 @@ pub enum Command {
     Import(ImportArgs),
     /// One measurement on one axis over CAN: bring-up, excite, record, identify.
     Sweep(sweep::SweepArgs),
+    /// The identification service: HTTP API, results store, MQTT (runs until SIGTERM).
+    Daemon(DaemonArgs),
+}
+
+#[derive(Debug, Args)]
+pub struct DaemonArgs {
+    /// The configuration file (TOML).
+    #[arg(long, default_value = "/etc/flexid/flexid.toml")]
+    pub config: PathBuf,
 }
 
 /// Options shared by the commands that identify.
@@ -183,5 +192,9 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
         Command::Demo(a) => demo::demo(&a),
         Command::Import(a) => commands::import(&a),
         Command::Sweep(a) => sweep::sweep(&a),
+        Command::Daemon(a) => crate::daemon::run(&a.config).map_err(|e| CliError {
+            message: e.to_string(),
+            code: e.exit_code(),
+        }),
     }
 }

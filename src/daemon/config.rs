@@ -1,0 +1,486 @@
+//! The daemon's TOML configuration (`/etc/flexid/flexid.toml`): parsed strictly (unknown
+//! keys are errors) and validated before anything starts; every error names the file and
+//! the key, e.g. `flexid.toml: axis[1].limits.peak_torque_nm: must be > 0`.
+
+use serde::Deserialize;
+use std::collections::HashSet;
+use std::net::SocketAddr;
+use std::path::{Path, PathBuf};
+
+/// Errors of loading the configuration. The message names the file and the key.
+#[derive(Debug, thiserror::Error)]
+pub enum ConfigError {
+    /// The file could not be read.
+    #[error("{file}: {source}")]
+    Io {
+        file: String,
+        #[source]
+        source: std::io::Error,
+    },
+    /// TOML syntax error, wrong type or unknown key.
+    #[error("{file}: {key}{message}")]
+    Parse {
+        file: String,
+        /// The key path (`axis[1].limits.peak_torque_nm`), or empty for syntax errors.
+        key: String,
+        message: String,
+    },
+    /// A value out of range or inconsistent with another one.
+    #[error("{file}: {key}: {reason}")]
+    Invalid {
+        file: String,
+        key: String,
+        reason: String,
+    },
+}
+
+/// The whole configuration file.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Config {
+    /// Where results are stored: `data_dir/<axis>/<sweep-id>/`.
+    pub data_dir: PathBuf,
+    /// The HTTP API.
+    pub api: ApiConfig,
+    /// MQTT publishing of models and axis states (optional).
+    #[serde(default)]
+    pub mqtt: Option<MqttConfig>,
+    /// Which backend drives the axes (default: the simulated one until the CANopen sweep is
+    /// wired).
+    #[serde(default)]
+    pub backend: BackendConfig,
+    /// The CAN buses.
+    #[serde(default)]
+    pub bus: Vec<BusConfig>,
+    /// The axes (at least one).
+    #[serde(default)]
+    pub axis: Vec<AxisConfig>,
+}
+
+/// `[api]`.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ApiConfig {
+    /// Listen address, loopback by default (`127.0.0.1:8642`); port 0 picks a free port.
+    #[serde(default = "default_listen")]
+    pub listen: SocketAddr,
+    /// File holding the bearer token (mode 0600 or 0400, owned by the service user).
+    pub token_file: PathBuf,
+}
+
+fn default_listen() -> SocketAddr {
+    SocketAddr::from(([127, 0, 0, 1], 8642))
+}
+
+/// `[mqtt]`.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MqttConfig {
+    /// Broker host name or address.
+    pub host: String,
+    /// Broker TCP port (1883 by default).
+    #[serde(default = "default_mqtt_port")]
+    pub port: u16,
+    /// Topic prefix: models go to `<prefix>/<axis>/model`, states to `<prefix>/<axis>/state`.
+    #[serde(default = "default_prefix")]
+    pub topic_prefix: String,
+    /// MQTT client id (`flexid-<pid>` by default).
+    #[serde(default)]
+    pub client_id: Option<String>,
+}
+
+fn default_mqtt_port() -> u16 {
+    1883
+}
+fn default_prefix() -> String {
+    "flexid".into()
+}
+
+/// `[backend]`: what runs the sweeps.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BackendConfig {
+    /// `"simulated"`: a simulated chain (no hardware); `"canopen"`: the drives on the buses.
+    #[serde(default = "default_backend_kind")]
+    pub kind: BackendKind,
+    /// Plant file (TOML) of the simulated backend; the embedded SCARA shoulder when absent.
+    #[serde(default)]
+    pub plant: Option<PathBuf>,
+}
+
+impl Default for BackendConfig {
+    fn default() -> Self {
+        BackendConfig {
+            kind: BackendKind::Simulated,
+            plant: None,
+        }
+    }
+}
+
+fn default_backend_kind() -> BackendKind {
+    BackendKind::Simulated
+}
+
+/// Backend kinds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum BackendKind {
+    Simulated,
+    Canopen,
+}
+
+/// `[[bus]]`.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BusConfig {
+    /// Name referenced by `axis.bus`.
+    pub name: String,
+    /// `"socketcan"` (needs `interface`) or `"udp"` (python-can compatible multicast; needs
+    /// `group` and `port`).
+    pub kind: BusKind,
+    /// SocketCAN interface, e.g. `can0`.
+    #[serde(default)]
+    pub interface: Option<String>,
+    /// UDP multicast group, e.g. `239.74.163.2`.
+    #[serde(default)]
+    pub group: Option<std::net::IpAddr>,
+    /// UDP port, e.g. 43113.
+    #[serde(default)]
+    pub port: Option<u16>,
+    /// Bit rate [bit/s] (for the bus-load check), 10 000 ..= 1 000 000.
+    pub bitrate: u32,
+}
+
+/// Bus kinds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum BusKind {
+    Udp,
+    Socketcan,
+}
+
+/// How an axis's cycle is timed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ClockKind {
+    /// Real time: absolute deadlines on CLOCK_MONOTONIC (the default).
+    Monotonic,
+    /// Simulated time: cycles run as fast as possible (simulated backend and test benches).
+    Simulated,
+}
+
+/// `[[axis]]`.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AxisConfig {
+    /// Name in the API and the topics (`[A-Za-z0-9_-]`, 1..=32 characters).
+    pub name: String,
+    /// The bus (a `[[bus]]` name).
+    pub bus: String,
+    /// CANopen node-id, 1..=127.
+    pub node: u8,
+    /// Firmware profile name (selected from the drive's identity when absent).
+    #[serde(default)]
+    pub profile: Option<String>,
+    /// Cycle rate [Hz] = sample rate of the recording, 100 ..= 8000.
+    pub cycle_hz: f64,
+    /// How the cycle is timed.
+    #[serde(default = "default_clock")]
+    pub clock: ClockKind,
+    /// Safety limits of this axis.
+    pub limits: Limits,
+}
+
+fn default_clock() -> ClockKind {
+    ClockKind::Monotonic
+}
+
+/// `axis.limits`.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Limits {
+    /// Largest torque command [N m] (> 0).
+    pub peak_torque_nm: f64,
+    /// Speed at which a sweep is stopped [rad/s] (> 0).
+    pub max_speed_rad_s: f64,
+    /// Largest excursion from the start position before a sweep is stopped [rad] (> 0).
+    pub position_window_rad: f64,
+    /// Longest sweep [s] (> 0).
+    pub max_sweep_s: f64,
+}
+
+impl AxisConfig {
+    /// Nyquist frequency of the cycle [Hz].
+    pub fn nyquist_hz(&self) -> f64 {
+        self.cycle_hz / 2.0
+    }
+}
+
+impl Config {
+    /// Read and validate the file at `path`.
+    pub fn load(path: &Path) -> Result<Config, ConfigError> {
+        let file = display_name(path);
+        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Io {
+            file: file.clone(),
+            source,
+        })?;
+        Self::parse(&text, &file)
+    }
+
+    /// Parse and validate configuration text; `file` names it in errors.
+    pub fn parse(text: &str, file: &str) -> Result<Config, ConfigError> {
+        let de = toml::Deserializer::parse(text).map_err(|e| ConfigError::Parse {
+            file: file.into(),
+            key: String::new(),
+            message: describe(&e, text),
+        })?;
+        let cfg: Config = serde_path_to_error::deserialize(de).map_err(|e| {
+            let key = e.path().to_string();
+            let message = describe(e.inner(), text);
+            let top = key == "." || key.is_empty();
+            ConfigError::Parse {
+                file: file.into(),
+                key: if top { String::new() } else { key },
+                message: if top { message } else { format!(": {message}") },
+            }
+        })?;
+        cfg.validate(file)?;
+        Ok(cfg)
+    }
+
+    /// The axis named `name`.
+    pub fn axis(&self, name: &str) -> Option<&AxisConfig> {
+        self.axis.iter().find(|a| a.name == name)
+    }
+
+    fn validate(&self, file: &str) -> Result<(), ConfigError> {
+        let bad = |key: String, reason: &str| ConfigError::Invalid {
+            file: file.into(),
+            key,
+            reason: reason.into(),
+        };
+        if self.data_dir.as_os_str().is_empty() {
+            return Err(bad("data_dir".into(), "must not be empty"));
+        }
+        if let Some(m) = &self.mqtt {
+            if m.host.trim().is_empty() {
+                return Err(bad("mqtt.host".into(), "must not be empty"));
+            }
+            if m.port == 0 {
+                return Err(bad("mqtt.port".into(), "must be 1..=65535"));
+            }
+            if m.topic_prefix.is_empty()
+                || m.topic_prefix.contains(['#', '+'])
+                || m.topic_prefix.ends_with('/')
+            {
+                return Err(bad(
+                    "mqtt.topic_prefix".into(),
+                    "must be non-empty, without '#', '+' or a trailing '/'",
+                ));
+            }
+        }
+        let mut buses = HashSet::new();
+        for (i, b) in self.bus.iter().enumerate() {
+            let key = |k: &str| format!("bus[{i}].{k}");
+            if !valid_name(&b.name) {
+                return Err(bad(
+                    key("name"),
+                    "must be 1..=32 characters of [A-Za-z0-9_-]",
+                ));
+            }
+            if !buses.insert(b.name.as_str()) {
+                return Err(bad(key("name"), "duplicate bus name"));
+            }
+            match b.kind {
+                BusKind::Socketcan => {
+                    if b.interface
+                        .as_deref()
+                        .is_none_or(|s| s.is_empty() || s.len() > 15)
+                    {
+                        return Err(bad(
+                            key("interface"),
+                            "a socketcan bus needs an interface name (1..=15 characters)",
+                        ));
+                    }
+                }
+                BusKind::Udp => {
+                    if !b.group.is_some_and(|g| g.is_multicast()) {
+                        return Err(bad(key("group"), "a udp bus needs a multicast group"));
+                    }
+                    if b.port.is_none_or(|p| p == 0) {
+                        return Err(bad(key("port"), "a udp bus needs a port 1..=65535"));
+                    }
+                }
+            }
+            if !(10_000..=1_000_000).contains(&b.bitrate) {
+                return Err(bad(key("bitrate"), "must be 10000..=1000000 bit/s"));
+            }
+        }
+        if self.axis.is_empty() {
+            return Err(bad("axis".into(), "at least one [[axis]] is needed"));
+        }
+        let mut names = HashSet::new();
+        let mut nodes = HashSet::new();
+        for (i, a) in self.axis.iter().enumerate() {
+            let key = |k: &str| format!("axis[{i}].{k}");
+            if !valid_name(&a.name) {
+                return Err(bad(
+                    key("name"),
+                    "must be 1..=32 characters of [A-Za-z0-9_-]",
+                ));
+            }
+            if !names.insert(a.name.as_str()) {
+                return Err(bad(key("name"), "duplicate axis name"));
+            }
+            if !buses.contains(a.bus.as_str()) {
+                return Err(bad(key("bus"), "no [[bus]] has this name"));
+            }
+            if !(1..=127).contains(&a.node) {
+                return Err(bad(key("node"), "must be 1..=127"));
+            }
+            if !nodes.insert((a.bus.as_str(), a.node)) {
+                return Err(bad(
+                    key("node"),
+                    "another axis uses this node on the same bus",
+                ));
+            }
+            if !(a.cycle_hz.is_finite() && (100.0..=8000.0).contains(&a.cycle_hz)) {
+                return Err(bad(key("cycle_hz"), "must be 100..=8000 Hz"));
+            }
+            let l = &a.limits;
+            for (k, v) in [
+                ("peak_torque_nm", l.peak_torque_nm),
+                ("max_speed_rad_s", l.max_speed_rad_s),
+                ("position_window_rad", l.position_window_rad),
+                ("max_sweep_s", l.max_sweep_s),
+            ] {
+                if !(v.is_finite() && v > 0.0) {
+                    return Err(bad(format!("axis[{i}].limits.{k}"), "must be > 0"));
+                }
+            }
+            if l.max_sweep_s > 3600.0 {
+                return Err(bad(key("limits.max_sweep_s"), "must be at most 3600 s"));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Axis and bus names: 1..=32 characters of `[A-Za-z0-9_-]` (safe in paths, URLs, topics).
+pub fn valid_name(s: &str) -> bool {
+    !s.is_empty()
+        && s.len() <= 32
+        && s.bytes()
+            .all(|b| b.is_ascii_alphanumeric() || b == b'_' || b == b'-')
+}
+
+fn display_name(path: &Path) -> String {
+    path.file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| path.display().to_string())
+}
+
+/// The error's message on one line, with the line and column of its span.
+fn describe(e: &toml::de::Error, text: &str) -> String {
+    let msg = e.message().split_whitespace().collect::<Vec<_>>().join(" ");
+    match e.span() {
+        Some(span) => {
+            let before = &text.as_bytes()[..span.start.min(text.len())];
+            let line = before.iter().filter(|&&b| b == b'\n').count() + 1;
+            let col = before.iter().rev().take_while(|&&b| b != b'\n').count() + 1;
+            format!("{msg} (line {line}, column {col})")
+        }
+        None => msg,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const GOOD: &str = r#"
+data_dir = "/tmp/x"
+[api]
+listen = "127.0.0.1:0"
+token_file = "/tmp/token"
+[[bus]]
+name = "can0"
+kind = "socketcan"
+interface = "can0"
+bitrate = 1000000
+[[axis]]
+name = "j1"
+bus = "can0"
+node = 1
+cycle_hz = 2000
+limits = { peak_torque_nm = 2.0, max_speed_rad_s = 10.0, position_window_rad = 1.0, max_sweep_s = 60 }
+[[axis]]
+name = "j2"
+bus = "can0"
+node = 2
+cycle_hz = 2000
+limits = { peak_torque_nm = 2.0, max_speed_rad_s = 10.0, position_window_rad = 1.0, max_sweep_s = 60 }
+"#;
+
+    #[test]
+    fn good_config_parses() {
+        let c = Config::parse(GOOD, "flexid.toml").unwrap();
+        assert_eq!(c.axis.len(), 2);
+        assert_eq!(c.axis[0].clock, ClockKind::Monotonic);
+        assert_eq!(c.backend.kind, BackendKind::Simulated);
+    }
+
+    #[test]
+    fn bad_limit_names_the_key() {
+        let text = replace_nth(GOOD, "peak_torque_nm = 2.0", "peak_torque_nm = -1", 1);
+        let e = Config::parse(&text, "flexid.toml").unwrap_err().to_string();
+        assert_eq!(e, "flexid.toml: axis[1].limits.peak_torque_nm: must be > 0");
+    }
+
+    #[test]
+    fn unknown_key_is_an_error_naming_it() {
+        let text = GOOD.replace("node = 2", "node = 2\nspeed = 3");
+        let e = Config::parse(&text, "flexid.toml").unwrap_err().to_string();
+        assert!(e.contains("axis[1]") && e.contains("speed"), "{e}");
+        let e = Config::parse(&GOOD.replace("[api]", "[api]\nfoo = 1"), "flexid.toml")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("api") && e.contains("foo"), "{e}");
+    }
+
+    #[test]
+    fn wrong_type_names_the_key() {
+        let text = GOOD.replacen("cycle_hz = 2000", "cycle_hz = \"fast\"", 1);
+        let e = Config::parse(&text, "flexid.toml").unwrap_err().to_string();
+        assert!(e.starts_with("flexid.toml: axis[0].cycle_hz"), "{e}");
+    }
+
+    #[test]
+    fn unknown_bus_and_duplicate_names() {
+        let e = Config::parse(
+            &GOOD.replace("bus = \"can0\"\nnode = 2", "bus = \"can9\"\nnode = 2"),
+            "f",
+        )
+        .unwrap_err()
+        .to_string();
+        assert_eq!(e, "f: axis[1].bus: no [[bus]] has this name");
+        let e = Config::parse(&GOOD.replace("\"j2\"", "\"j1\""), "f")
+            .unwrap_err()
+            .to_string();
+        assert_eq!(e, "f: axis[1].name: duplicate axis name");
+    }
+
+    fn replace_nth(s: &str, from: &str, to: &str, n: usize) -> String {
+        let mut out = String::new();
+        let mut rest = s;
+        let mut i = 0;
+        while let Some(p) = rest.find(from) {
+            out.push_str(&rest[..p]);
+            out.push_str(if i == n { to } else { from });
+            rest = &rest[p + from.len()..];
+            i += 1;
+        }
+        out.push_str(rest);
+        out
+    }
+}

@@ -1,0 +1,252 @@
+//! The thread that follows one running sweep: streams every period's samples to disk,
+//! forwards progress and Bode estimates to the hub, and at the end analyses the recording,
+//! writes the results, publishes the model and frees the axis.
+
+use super::backend::{Outcome, SweepEvent};
+use super::hub::SweepHub;
+use super::service::Service;
+use super::store::{SweepFiles, SweepState, BODE_SVG, RESULT_JSON};
+use crate::analysis::{analyze, to_json, Analysis, AnalysisOptions};
+use crate::frf::Frf;
+use crate::plot::BodePlot;
+use crate::recording::Sidecar;
+use serde_json::{json, Value};
+use std::sync::Arc;
+use tokio::sync::mpsc;
+
+/// Everything the runner owns.
+pub(crate) struct Job {
+    pub svc: Arc<Service>,
+    pub hub: Arc<SweepHub>,
+    pub files: SweepFiles,
+    pub sidecar: Sidecar,
+    pub events: mpsc::Receiver<SweepEvent>,
+    pub periods_total: usize,
+    pub planned_s: f64,
+    pub sample_rate_hz: f64,
+}
+
+/// Follow the sweep to its end (blocking; runs on its own thread).
+pub(crate) fn run(mut job: Job) {
+    let status = job.hub.status();
+    let (id, axis) = status
+        .as_ref()
+        .map(|s| (s.id.clone(), s.axis.clone()))
+        .unwrap_or_default();
+    let mut samples = 0usize;
+    let mut last_frf: Option<Arc<Frf>> = None;
+    let mut store_failed: Option<String> = None;
+    let ended = loop {
+        match job.events.blocking_recv() {
+            Some(SweepEvent::Period {
+                index,
+                samples: block,
+                frf_so_far,
+                elapsed_s,
+                counters,
+            }) => {
+                let appended = if block.torque_cmd_nm.is_empty() || block.first_sample != samples {
+                    // a backend that does not stream rows (or skipped some): the rows come
+                    // with the final recording
+                    Ok(())
+                } else {
+                    samples = block.first_sample + block.torque_cmd_nm.len();
+                    job.files.append(&block, job.sample_rate_hz)
+                };
+                if let Err(e) = appended {
+                    // the data cannot be kept: stop the motor rather than run blind
+                    tracing::error!("sweep {id}: {e}; aborting");
+                    job.hub.abort.abort("results store failed");
+                    store_failed.get_or_insert(e.to_string());
+                }
+                job.hub.update(|s| {
+                    s.periods_done = index + 1;
+                    s.samples = samples;
+                });
+                job.hub.publish(
+                    "progress",
+                    json!({
+                        "sweep_id": id,
+                        "period": index + 1,
+                        "periods_total": job.periods_total,
+                        "elapsed_s": elapsed_s,
+                        "planned_s": job.planned_s,
+                        "samples": samples,
+                        "counters": counters,
+                    })
+                    .to_string(),
+                );
+                if let Some(frf) = frf_so_far {
+                    let _ = job.files.write_frf(&frf);
+                    job.hub
+                        .publish("bode", bode_json(&frf, index + 1).to_string());
+                    last_frf = Some(frf);
+                }
+            }
+            Some(SweepEvent::Ended {
+                outcome,
+                reason,
+                recording,
+            }) => break (outcome, reason, recording),
+            None => {
+                break (
+                    Outcome::Failed,
+                    "the backend stopped without reporting an end".into(),
+                    None,
+                )
+            }
+        }
+    };
+    let (outcome, mut reason, recording) = ended;
+    // rows the backend did not stream: append them from the final recording
+    if let Some(rec) = &recording {
+        if let Some(pos) = &rec.position_rad {
+            let n = rec.len().min(pos.len());
+            if n > samples {
+                let block = super::backend::SampleBlock {
+                    first_sample: samples,
+                    torque_cmd_nm: rec.torque_cmd_nm[samples..n].to_vec(),
+                    position_rad: pos[samples..n].to_vec(),
+                };
+                match job.files.append(&block, job.sample_rate_hz) {
+                    Ok(()) => samples = n,
+                    Err(e) => tracing::error!("sweep {id}: {e}"),
+                }
+            }
+        }
+    }
+    if let Some(e) = store_failed {
+        reason = format!("{reason} (results store: {e})");
+    }
+    // analyse what was measured (also a partial recording: it may still hold periods)
+    let mut result: Value = json!({"model": null});
+    let mut has_model = false;
+    if let Some(rec) = &recording {
+        job.sidecar = rec.sidecar.clone();
+        match analyze(rec, &AnalysisOptions::default()) {
+            Ok(an) => {
+                let j = to_json(&an);
+                has_model = an.model.is_some();
+                if let Ok(text) = serde_json::to_string_pretty(&j) {
+                    let _ = job.files.write_file(RESULT_JSON, text.as_bytes());
+                }
+                let _ = job.files.write_frf(&an.measured.frf);
+                write_bode(&job.files, &an, &id);
+                result = json!({
+                    "model": an.model,
+                    "notes": an.notes,
+                });
+                if let (Some(m), Some(mqtt)) = (&an.model, &job.svc.mqtt) {
+                    mqtt.publish(&axis, "model", &model_message(&id, &axis, m));
+                }
+            }
+            Err(e) => {
+                result = json!({"model": null, "error": e.to_string()});
+                if let Some(frf) = &last_frf {
+                    if let Ok(svg) = BodePlot::new(frf)
+                        .title(format!("sweep {id} (no model)"))
+                        .render_svg()
+                    {
+                        let _ = job.files.write_file(BODE_SVG, svg.as_bytes());
+                    }
+                }
+            }
+        }
+    }
+    job.sidecar.sample_rate_hz = Some(job.sample_rate_hz);
+    if outcome != Outcome::Completed {
+        job.sidecar.ended_because = Some(reason.clone());
+    }
+    job.hub.update(|s| {
+        s.state = SweepState::from(outcome);
+        s.reason = Some(reason.clone());
+        s.ended_unix_s = Some(super::store::unix_now());
+        s.samples = samples;
+        s.has_result = has_model;
+    });
+    if let Some(st) = job.hub.status() {
+        if let Err(e) = job.files.finish(&st, &job.sidecar) {
+            tracing::error!("sweep {id}: {e}");
+        }
+    }
+    if has_model {
+        job.svc.set_last_result(&axis, &id);
+    }
+    job.hub.publish("result", result.to_string());
+    job.hub.publish(
+        "ended",
+        json!({"sweep_id": id, "outcome": outcome, "reason": reason, "samples": samples})
+            .to_string(),
+    );
+    tracing::info!("axis {axis}: sweep {id} ended: {reason}");
+    job.svc.release(&axis);
+}
+
+/// The `bode` event: the estimate after `period` periods.
+pub fn bode_json(frf: &Frf, period: usize) -> Value {
+    let rel: Vec<f64> = (0..frf.len())
+        .map(|i| finite(frf.relative_std(i)))
+        .collect();
+    json!({
+        "period": period,
+        "freq_hz": frf.freq_hz,
+        "magnitude_db": frf.magnitude_db().into_iter().map(finite).collect::<Vec<_>>(),
+        "phase_deg": frf.phase_deg_unwrapped().into_iter().map(finite).collect::<Vec<_>>(),
+        "coherence": frf.coherence,
+        "relative_std": rel,
+    })
+}
+
+fn finite(x: f64) -> f64 {
+    if x.is_finite() {
+        x
+    } else {
+        f64::MAX
+    }
+}
+
+/// The retained `<prefix>/<axis>/model` message.
+pub fn model_message(id: &str, axis: &str, m: &crate::analysis::ModelSummary) -> Value {
+    json!({
+        "axis": axis,
+        "sweep_id": id,
+        "time_unix_s": super::store::unix_now(),
+        "masses": m.masses,
+        "inertia_kgm2": m.inertia_kgm2,
+        "inertia_std_kgm2": m.inertia_std_kgm2,
+        "stiffness_nm_per_rad": m.stiffness_nm_per_rad,
+        "stiffness_std_nm_per_rad": m.stiffness_std_nm_per_rad,
+        "damping_nms_per_rad": m.damping_nms_per_rad,
+        "damping_std_nms_per_rad": m.damping_std_nms_per_rad,
+        "resonance_hz": m.resonance_hz,
+        "antiresonance_hz": m.antiresonance_hz,
+    })
+}
+
+fn write_bode(files: &SweepFiles, an: &Analysis, id: &str) {
+    let mut plot = BodePlot::new(&an.measured.frf).title(format!("sweep {id}"));
+    if let Some(m) = &an.model_frf {
+        plot = plot.model(m, "identified chain");
+    }
+    if let Some(m) = &an.model {
+        let (lo, hi) = (
+            an.measured.frf.freq_hz.first().copied().unwrap_or(0.0),
+            an.measured.frf.freq_hz.last().copied().unwrap_or(0.0),
+        );
+        let inside = |v: &[f64]| {
+            v.iter()
+                .copied()
+                .filter(|f| *f >= lo && *f <= hi)
+                .collect::<Vec<_>>()
+        };
+        plot = plot
+            .anti_resonances(&inside(&m.antiresonance_hz))
+            .resonances(&inside(&m.resonance_hz));
+    }
+    match plot.render_svg() {
+        Ok(svg) => {
+            let _ = files.write_file(BODE_SVG, svg.as_bytes());
+        }
+        Err(e) => tracing::warn!("sweep {id}: bode plot: {e}"),
+    }
+}

@@ -264,3 +264,57 @@ fn ctrl_c_mid_sweep_ramps_down_disables_and_saves() {
     );
     assert!(stderr.contains("drive disabled"), "{stderr}");
 }
+
+/// The master dies (SIGKILL: no disable, no last frame) in Operation enabled: the drive's
+/// heartbeat consumer (0x1016, written by the master at bring-up: 300 ms) must stop the
+/// motor on its own and say so with EMCY 0x8130. A third node on the bus (this test)
+/// watches for the EMCY and times it from the kill.
+#[test]
+fn master_killed_mid_sweep_the_drive_stops_within_its_consumer_time() {
+    use flexid_can::{CanBus, UdpConfig, UdpMulticastBus};
+    if !loopback_multicast() {
+        return;
+    }
+    let port = 43225;
+    let bus_name = bus(port);
+    let _vd = VDrive::start(&bus_name, &plant_path());
+    let group: std::net::IpAddr = GROUP.parse().unwrap();
+    let mut watch = UdpMulticastBus::open(UdpConfig::group_port(group, port)).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("master-killed");
+    let (mut child, _h) = start_long_sweep(&bus_name, &out, &[]);
+    // drain what the sweep sent so far, then kill it
+    while watch.recv_timeout(Duration::ZERO).unwrap().is_some() {}
+    child.kill().unwrap();
+    let killed = Instant::now();
+    let _ = child.wait();
+    let mut emcy = None;
+    while killed.elapsed() < Duration::from_secs(3) {
+        let Ok(Some(r)) = watch.recv_timeout(Duration::from_millis(50)) else {
+            continue;
+        };
+        let f = r.frame;
+        if f.id() == flexid_can::CanId::Standard(0x085) && f.data().len() == 8 {
+            emcy = Some((
+                killed.elapsed(),
+                u16::from_le_bytes([f.data()[0], f.data()[1]]),
+            ));
+            break;
+        }
+    }
+    let (after, code) = emcy.expect("no EMCY from the drive within 3 s of the master's death");
+    assert_eq!(
+        code, 0x8130,
+        "EMCY code {code:#06x}, not heartbeat/life guard"
+    );
+    eprintln!(
+        "drive faulted {} ms after the master was killed",
+        after.as_millis()
+    );
+    // 300 ms consumer time counted from the last heartbeat, which preceded the kill; the
+    // margin is for a loaded test machine.
+    assert!(
+        after <= Duration::from_millis(300 + 200),
+        "the drive faulted {after:?} after the master died (consumer time 300 ms)"
+    );
+}

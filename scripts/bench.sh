@@ -16,6 +16,8 @@
 #    real-time cycle thread against a bare clock_nanosleep loop at 1, 2 and 4 kHz (4 s per
 #    rate and loop, 1 s with --quick), written to target/bench/cycle_timing.md. It asks for
 #    SCHED_FIFO, mlockall and the last core itself and reports what it was granted.
+# 5. runs the cycle-rate benchmark (drivers/flexid-vdrive/benches/cycle_rate.rs): highest
+#    overrun-free cycle rate on an emulated 1 Mbit/s bus, target/bench/cycle_rate.md.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 root=$(pwd)
@@ -79,3 +81,15 @@ if [ -z "$cexe" ] || [ ! -x "$cexe" ]; then
     exit 1
 fi
 "$cexe" "${mode[@]}" --out "$root/target/bench/cycle_timing.md"
+
+# 5. The cycle-rate benchmark (drivers/flexid-vdrive/benches/cycle_rate.rs): master and
+#    flexid-vdrive on an in-process bus paced at 1 Mbit/s, the highest cycle rate without
+#    overruns against the bus limit of the default mapping; target/bench/cycle_rate.md.
+rexe=$(cargo build --release -p flexid-vdrive --bench cycle_rate --message-format=json 2>/dev/null |
+    sed -n 's/.*"executable":"\([^"]*cycle_rate[^"]*\)".*/\1/p' | tail -n 1)
+if [ -z "$rexe" ] || [ ! -x "$rexe" ]; then
+    cargo build --release -p flexid-vdrive --bench cycle_rate # shows the error
+    echo "bench: could not find the cycle_rate executable" >&2
+    exit 1
+fi
+"$rexe" "${mode[@]}" --out "$root/target/bench/cycle_rate.md"

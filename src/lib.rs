@@ -15,6 +15,8 @@
 //! * [`plot`]: Bode plots as SVG.
 //! * [`import`]: MAT v5 and DaISy files into recordings.
 //! * [`sim`]: simulated recordings of chains (exact ZOH sampling, noise, quantisation).
+//! * [`plant`]: the physics plant of the simulated drive: the chain with unmodelled
+//!   effects (friction, backlash, delay, current loop, ...), a fine-step simulator.
 //!
 //! Conventions: SI units throughout (kg m^2, N m/rad, N m s/rad, rad, rad/s, Hz, s). The
 //! plant is the motor mobility: motor torque -> motor angular velocity. Body 1 is the motor.
@@ -26,6 +28,7 @@ pub mod frf;
 pub mod identify;
 pub mod import;
 pub mod model;
+pub mod plant;
 pub mod plot;
 pub mod recording;
 pub mod sim;

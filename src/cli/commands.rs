@@ -151,7 +151,8 @@ fn simulate_to(
         "simulated: {} (exact ZOH sampling{}{})",
         plant.name.as_deref().unwrap_or("plant file"),
         plant
-            .measurement
+            .spec()
+            .effects
             .encoder_counts_per_rev
             .map(|c| format!(", {c}-count encoder"))
             .unwrap_or_default(),
@@ -164,8 +165,35 @@ fn simulate_to(
             String::new()
         }
     ));
-    crate::sim::simulate_recording(&plant.chain, torque, &plant.sim_options(seed), sc)
-        .map_err(|e| CliError::failed(format!("simulation: {e}")))
+    if !plant.has_effects() {
+        // purely linear plant: the exact ZOH path (bit-identical to earlier versions)
+        return crate::sim::simulate_recording(&plant.chain, torque, &plant.sim_options(seed), sc)
+            .map_err(|e| CliError::failed(format!("simulation: {e}")));
+    }
+    let position = crate::plant::simulate_file_positions(plant, torque, seed)
+        .map_err(|e| CliError::failed(format!("simulation: {e}")))?;
+    let fs = plant.measurement.sample_rate_hz;
+    if let Some(src) = sc.source.as_mut() {
+        *src = src.replacen(
+            "exact ZOH sampling",
+            &format!(
+                "RK4 with {} sub-steps, with unmodelled effects",
+                plant.substeps()
+            ),
+            1,
+        );
+    }
+    sc.sample_rate_hz = Some(fs);
+    sc.io_delay_samples = Some(plant.measurement.delay_samples);
+    Ok(Recording {
+        time_s: (0..torque.len()).map(|k| k as f64 / fs).collect(),
+        torque_cmd_nm: torque.to_vec(),
+        position_rad: Some(position),
+        velocity_rad_s: None,
+        acceleration_rad_s2: None,
+        sample_rate_hz: fs,
+        sidecar: sc,
+    })
 }
 
 /// `flexid simulate`.

@@ -93,29 +93,52 @@ pub fn simulate_position(
         }
         std::mem::swap(&mut x, &mut next);
     }
-    if opts.velocity_noise_rel > 0.0 && pos.len() > 1 {
-        let fs = opts.sample_rate_hz;
-        let mean_v = (pos[pos.len() - 1] - pos[0]) * fs / (pos.len() - 1) as f64;
-        let rms_v = (pos
-            .windows(2)
-            .map(|w| ((w[1] - w[0]) * fs - mean_v).powi(2))
-            .sum::<f64>()
-            / (pos.len() - 1) as f64)
-            .sqrt();
-        let sigma_step = opts.velocity_noise_rel * rms_v * ts;
-        let mut walk = 0.0;
-        for p in pos.iter_mut().skip(1) {
-            walk += sigma_step * unit.sample(&mut rng);
-            *p += walk;
-        }
-    }
+    add_velocity_noise(
+        &mut pos,
+        opts.velocity_noise_rel,
+        opts.sample_rate_hz,
+        &mut rng,
+    );
     if let Some(counts) = opts.encoder_counts_per_rev {
-        let q = 2.0 * std::f64::consts::PI / counts as f64;
-        for p in pos.iter_mut() {
-            *p = (*p / q).round() * q;
-        }
+        quantise(&mut pos, counts);
     }
     Ok(pos)
+}
+
+/// Add white noise of standard deviation `rel` times the RMS (about its mean) of the
+/// differenced velocity of `pos` [rad] sampled at `fs_hz` [Hz] to that velocity, i.e. a
+/// random walk on the position (the first sample untouched). No-op for `rel <= 0`.
+pub fn add_velocity_noise<R: rand::Rng>(pos: &mut [f64], rel: f64, fs_hz: f64, rng: &mut R) {
+    if !(rel > 0.0 && pos.len() > 1) {
+        return;
+    }
+    let unit = Normal::new(0.0, 1.0).expect("unit normal");
+    let fs = fs_hz;
+    let ts = 1.0 / fs;
+    let mean_v = (pos[pos.len() - 1] - pos[0]) * fs / (pos.len() - 1) as f64;
+    let rms_v = (pos
+        .windows(2)
+        .map(|w| ((w[1] - w[0]) * fs - mean_v).powi(2))
+        .sum::<f64>()
+        / (pos.len() - 1) as f64)
+        .sqrt();
+    let sigma_step = rel * rms_v * ts;
+    let mut walk = 0.0;
+    for p in pos.iter_mut().skip(1) {
+        walk += sigma_step * unit.sample(rng);
+        *p += walk;
+    }
+}
+
+/// Round positions [rad] to an encoder of `counts` counts per revolution (0 = no-op).
+pub fn quantise(pos: &mut [f64], counts: u64) {
+    if counts == 0 {
+        return;
+    }
+    let q = 2.0 * std::f64::consts::PI / counts as f64;
+    for p in pos.iter_mut() {
+        *p = (*p / q).round() * q;
+    }
 }
 
 /// A complete [`Recording`] of `chain` driven by `torque_nm`, with the given sidecar (its

@@ -23,6 +23,7 @@
 
 pub mod analysis;
 pub mod cli;
+pub mod diagnose;
 pub mod excitation;
 pub mod frf;
 pub mod identify;

@@ -7,6 +7,7 @@
 //! * `flexid excite multisine|chirp|stepped ... --out EXC.csv`
 
 mod commands;
+pub mod diagnose;
 mod excite;
 pub mod plant;
 
@@ -37,6 +38,9 @@ pub enum Command {
     Demo(DemoArgs),
     /// Convert a measurement file (MAT v5, DaISy ASCII, or a named preset) to a recording.
     Import(ImportArgs),
+    /// Diagnose the gap between the identified chain and the measurement: where, which
+    /// unmodelled effect, and how far it shrinks with it (one recording per amplitude).
+    Diagnose(diagnose::DiagnoseArgs),
 }
 
 /// Options shared by the commands that identify.
@@ -176,5 +180,6 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
         Command::Simulate(a) => commands::simulate(&a),
         Command::Demo(a) => commands::demo(&a),
         Command::Import(a) => commands::import(&a),
+        Command::Diagnose(a) => diagnose::diagnose(&a),
     }
 }

@@ -65,3 +65,16 @@ data="$root/target/bench/data"
 rm -rf "$data"
 "${pin[@]}" "$exe" "${mode[@]}" --out "$data"
 "${pin[@]}" "$venv/bin/python" benches/compare.py "$data" --report "$root/target/bench/compare.md"
+
+# The withheld-effect benchmark of `flexid diagnose` (benches/withheld_effect.rs): random
+# axes with one unmodelled effect each, simulated by the fine-step plant, diagnosed without
+# the truth; prints the confusion matrix, the gap ratios and the time per case. --quick: 3
+# cases per class; full: 10. Fails when a class misses 90 % or a gap is not halved.
+if [ ${#mode[@]} -gt 0 ]; then
+    cases=3
+else
+    cases=10
+fi
+wexe=$(cargo build --release --bench withheld_effect --message-format=json 2>/dev/null |
+    sed -n 's/.*"executable":"\([^"]*withheld_effect[^"]*\)".*/\1/p' | tail -n 1)
+"${pin[@]}" "$wexe" "$cases" | tee "$root/target/bench/withheld_effect.txt"

@@ -323,7 +323,25 @@ pub fn diagnose(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Diagnosis,
                 .total_cmp(&data.levels[b].torque_rms)
         })
         .unwrap();
-    let start = nominal_start(&data.levels[top].rec, n, opts.band_hz)
+    // the nominal start: the pipeline's own identification, highest level first
+    let mut order: Vec<usize> = (0..data.levels.len()).collect();
+    order.sort_by(|&a, &b| {
+        data.levels[b]
+            .torque_rms
+            .total_cmp(&data.levels[a].torque_rms)
+    });
+    let start = order
+        .iter()
+        .find_map(|&i| nominal_start(&data.levels[i].rec, n, opts.band_hz))
+        .or_else(|| {
+            // fewer detected pairs than the model has: one body less, plus one appended
+            // near the top of the band
+            let m = n.checked_sub(1).filter(|&m| m > 0)?;
+            let c = nominal_start(&data.levels[top].rec, m, opts.band_hz)?;
+            effects::mode::starts(&c, &[0.5 * data.f_max()], &[])
+                .into_iter()
+                .nth(1)
+        })
         .ok_or(DiagnoseError::NoNominal(top, n))?;
     let nom_lin = effects::fit_linear(
         &data,
@@ -399,8 +417,21 @@ pub fn diagnose(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Diagnosis,
             "backlash",
             &mut notes,
         );
+        // hardening stiffens the springs at the highest level: start from the chain the
+        // lowest level sees
+        let low = (0..data.levels.len())
+            .min_by(|&a, &b| {
+                data.levels[a]
+                    .torque_rms
+                    .total_cmp(&data.levels[b].torque_rms)
+            })
+            .unwrap();
+        let low_lin =
+            effects::fit_linear(&data, &data.targets[low..low + 1], Lin::None, &nom_lin, 40)
+                .map(|r| r.0)
+                .unwrap_or_else(|| nom_lin.clone());
         push(
-            effects::hardening::fit(&data, &nom_lin),
+            effects::hardening::fit(&data, &low_lin),
             "hardening_stiffness",
             &mut notes,
         );

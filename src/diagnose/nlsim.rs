@@ -118,6 +118,15 @@ pub fn simulate(lin: &LinExt, nl: Nl, u: &[f64], fs: f64, substeps: usize) -> Si
             }
             std::mem::swap(&mut x, &mut xn);
         }
+        if !x.iter().all(|v| v.is_finite() && v.abs() < 1e12) {
+            // unstable (a spring stiffened beyond the step): no model
+            let bad = vec![f64::NAN; u.len()];
+            return SimOut {
+                pos: bad.clone(),
+                vel: bad,
+                defl_rms: vec![f64::NAN; n.saturating_sub(1)],
+            };
+        }
     }
     let len = u.len().max(1) as f64;
     SimOut {

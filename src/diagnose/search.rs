@@ -22,7 +22,12 @@ pub fn sim_model(data: &Data, lin: &LinExt, nl: Nl, short: bool) -> Option<Vec<V
                 }
                 _ => u.len(),
             };
-            let out = simulate(lin, nl, &u[..n], data.fs, data.substeps);
+            // the spring nonlinearities act at the gear's frequency: finer sub-steps
+            let sub = match nl {
+                Nl::Backlash { .. } | Nl::Hardening { .. } => 4 * data.substeps,
+                _ => data.substeps,
+            };
+            let out = simulate(lin, nl, &u[..n], data.fs, sub);
             sim_frf(&l.rec, data.band, &l.keep, &out)
         })
         .collect()
@@ -129,9 +134,10 @@ pub fn fit_nonlinear(
             lin = m;
         }
     }
-    let (mut p, _, _) = search_1d(lo, hi, 7, 5, |p| chi2_of(data, &lin, make(p)));
-    // correct the chain: the measurement with the simulated effect divided out
-    for _ in 0..2 {
+    let (mut p, _, mut sig) = search_1d(lo, hi, 7, 5, |p| chi2_of(data, &lin, make(p)));
+    // alternate: correct the chain (the measurement with the simulated effect divided
+    // out), then search again around the current value
+    for round in 0..2 {
         let model = sim_model(data, &lin, make(p), true)?;
         let targets: Vec<Target> = data
             .levels
@@ -161,9 +167,11 @@ pub fn fit_nonlinear(
         if let Some((m, _)) = fit_linear(data, &targets, k, &start, 25) {
             lin = m;
         }
+        let w = if round == 0 { 3.0 } else { 1.6 };
+        let r = search_1d(p / w, p * w, 5, 4, |q| chi2_of(data, &lin, make(q)));
+        p = r.0;
+        sig = r.2;
     }
-    let (p2, _, sig) = search_1d(p / 3.0, p * 3.0, 5, 6, |q| chi2_of(data, &lin, make(q)));
-    p = p2;
     let model = sim_model(data, &lin, make(p), false)?;
     let chi2 = data.chi2(&model);
     let mut params = vec![Param {

@@ -73,7 +73,7 @@ impl Lin {
     fn extra(self) -> usize {
         match self {
             Lin::None | Lin::Mode => 0,
-            Lin::Loop2 => 2,
+            Lin::Loop2 | Lin::Gravity => 2,
             _ => 1,
         }
     }
@@ -117,7 +117,10 @@ pub fn theta(m: &LinExt, k: Lin) -> Vec<f64> {
                 t.push(l.zeta.ln());
             }
         }
-        Lin::Gravity => t.push(m.ground_k.max(fs_guard).ln()),
+        Lin::Gravity => {
+            t.push(m.ground_k.max(fs_guard).ln());
+            t.push(m.motor_b.max(fs_guard).ln());
+        }
         Lin::Viscous => t.push(m.motor_b.max(fs_guard).ln()),
     }
     t
@@ -144,7 +147,10 @@ pub fn build(t: &[f64], n: usize, k: Lin) -> Option<LinExt> {
                 zeta: e[1].exp().min(5.0),
             })
         }
-        Lin::Gravity => m.ground_k = e[0].exp(),
+        Lin::Gravity => {
+            m.ground_k = e[0].exp();
+            m.motor_b = e[1].exp();
+        }
         Lin::Viscous => m.motor_b = e[0].exp(),
     }
     if e.iter().any(|v| !v.is_finite() || v.abs() > 60.0) {

@@ -306,7 +306,38 @@ fn nominal_start(
         },
         ..AnalysisOptions::default()
     };
-    analyze(rec, &opts).ok()?.fit.map(|f| f.chain)
+    match analyze(rec, &opts) {
+        Ok(a) => a.fit.map(|f| f.chain),
+        Err(_) if masses == 1 => {
+            // a rigid body: its inertia from the low-frequency gain
+            let a = analyze(
+                rec,
+                &AnalysisOptions {
+                    masses: None,
+                    ..opts
+                },
+            )
+            .ok();
+            let j = a
+                .as_ref()
+                .and_then(|a| a.total_inertia.as_ref().map(|t| t.j_kgm2))
+                .or_else(|| {
+                    let e = estimate_frf(rec, band).ok()?;
+                    let k = e.frf.len().min(5).max(1);
+                    let s: f64 = (0..k)
+                        .map(|i| {
+                            1.0 / (2.0
+                                * std::f64::consts::PI
+                                * e.frf.freq_hz[i]
+                                * e.frf.h[i].norm())
+                        })
+                        .sum();
+                    Some(s / k as f64)
+                })?;
+            crate::model::Chain::new(vec![j], vec![], vec![]).ok()
+        }
+        Err(_) => None,
+    }
 }
 
 /// Diagnose the gap between the nominal `opts.masses`-body chain and the recordings (one per

@@ -9,7 +9,7 @@ use serde::Serialize;
 /// Reduced chi² of the nominal model below which the gap is taken as noise.
 pub const NOISE_CHI2: f64 = 1.6;
 /// A winner must remove at least this fraction of the nominal chi².
-pub const MIN_REDUCTION: f64 = 0.2;
+pub const MIN_REDUCTION: f64 = 0.02;
 
 /// One candidate in the ranking.
 #[derive(Debug, Clone, Serialize)]

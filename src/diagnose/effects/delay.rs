@@ -8,15 +8,17 @@ use crate::diagnose::Data;
 
 pub fn fit(data: &Data, nominal: &LinExt) -> Option<EffectFit> {
     let ts = 1.0 / data.fs;
-    let starts: Vec<LinExt> = [0.0, 0.3, 1.0, 3.0]
-        .iter()
+    // a grid of a quarter sample up to 4 samples: the phase wraps, so LM alone can lock
+    // onto a wrong branch
+    let starts: Vec<LinExt> = (0..=16)
+        .map(|i| i as f64 * 0.25)
         .map(|x| {
             let mut s = nominal.clone();
             s.delay_s = x * ts;
             s
         })
         .collect();
-    let (m, r) = fit_best_start(data, Lin::Delay, &starts, 40, 1)?;
+    let (m, r) = fit_best_start(data, Lin::Delay, &starts, 40, 2)?;
     let np = r.x.len();
     // the parameter is the delay in ms
     let std = r.cov[np * np - 1].max(0.0).sqrt() * 1e-3;

@@ -20,7 +20,7 @@ pub fn fit(data: &Data, nominal: &LinExt) -> Option<EffectFit> {
             s
         })
         .collect();
-    let (m, r) = fit_best_start(data, Lin::Gravity, &starts, 40, 2)?;
+    let (m, r) = fit_best_start(data, Lin::Gravity, &starts, 80, 3)?;
     let i0 = 3 * m.chain.masses() - 2;
     let p = vec![
         Param {

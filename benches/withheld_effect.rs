@@ -65,6 +65,10 @@ fn main() {
                 &recs,
                 &DiagnoseOptions {
                     masses: 3,
+                    spring_substeps: std::env::var("WITHHELD_SPRING_SUBSTEPS")
+                        .ok()
+                        .and_then(|v| v.parse().ok())
+                        .unwrap_or(DiagnoseOptions::default().spring_substeps),
                     ..DiagnoseOptions::default()
                 },
             );

@@ -61,6 +61,8 @@ pub struct DiagnoseOptions {
     pub band_hz: Option<[f64; 2]>,
     /// Sub-steps per sample of the time-domain simulation of amplitude-dependent effects.
     pub substeps: usize,
+    /// Sub-steps per sample for the spring nonlinearities (backlash, hardening).
+    pub spring_substeps: usize,
     /// Fit lines per level used by the joint linear refits (all lines are scored).
     pub fit_lines: usize,
     /// Run the amplitude-dependent candidates even without amplitude dependence/distortion.
@@ -73,6 +75,7 @@ impl Default for DiagnoseOptions {
             masses: 2,
             band_hz: None,
             substeps: 4,
+            spring_substeps: 16,
             fit_lines: 300,
             force_nonlinear: false,
         }
@@ -101,6 +104,7 @@ pub struct Data {
     pub kind: FrfKind,
     pub band: Option<[f64; 2]>,
     pub substeps: usize,
+    pub spring_substeps: usize,
     /// Decimated lines per level (joint refits).
     pub targets: Vec<Target>,
     /// All lines per level.
@@ -236,6 +240,7 @@ pub fn prepare(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Data, Diagn
         kind,
         band: opts.band_hz,
         substeps: opts.substeps,
+        spring_substeps: opts.spring_substeps,
         targets,
         full_targets,
     })
@@ -432,11 +437,33 @@ pub fn diagnose(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Diagnosis,
         })
         .collect();
     let mode_starts = effects::mode::starts(&nom_lin.chain, &freqs, &extra);
-    push(
-        effects::mode::fit(&data, &mode_starts),
-        "unmodelled_mode",
-        &mut notes,
-    );
+    let mode_fit = effects::mode::fit(&data, &mode_starts);
+    let mut ground_as_gravity: Option<EffectFit> = None;
+    // an "extra body" far heavier than the whole axis is the ground: its spring is a
+    // restoring stiffness on the last body (gravity); the better of the two gravity fits
+    if let Some(mf) = &mode_fit {
+        let ch = &mf.lin.chain;
+        let je = *ch.inertia_kgm2.last().unwrap();
+        if je > 50.0 * nom_lin.chain.total_inertia() {
+            let mut g = mf.clone();
+            g.effect = "gravity";
+            g.params = vec![
+                EffectFit::param(
+                    "m_g_l_nm",
+                    *ch.stiffness_nm_per_rad.last().unwrap(),
+                    f64::NAN,
+                ),
+                EffectFit::param(
+                    "damping_nms_per_rad",
+                    *ch.damping_nms_per_rad.last().unwrap(),
+                    f64::NAN,
+                ),
+                EffectFit::param("ground_inertia_kgm2", je, f64::NAN),
+            ];
+            ground_as_gravity = Some(g);
+        }
+    }
+    push(mode_fit, "unmodelled_mode", &mut notes);
     if residual.nonlinear || opts.force_nonlinear {
         push(
             effects::friction::fit(&data, &nom_lin),
@@ -470,6 +497,13 @@ pub fn diagnose(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Diagnosis,
         notes.push(
             "amplitude-dependent candidates not simulated: no significant change between levels and no distortion at the detection lines".into(),
         );
+    }
+    if let Some(g) = ground_as_gravity {
+        match fits.iter().position(|f| f.effect == "gravity") {
+            Some(i) if fits[i].chi2 <= g.chi2 => {}
+            Some(i) => fits[i] = g,
+            None => fits.push(g),
+        }
     }
     let (ranking, win) = rank::rank(&data, &nominal, &fits, &residual);
     let winner = win.map(|i| fits[i].clone());

@@ -24,7 +24,7 @@ pub fn sim_model(data: &Data, lin: &LinExt, nl: Nl, short: bool) -> Option<Vec<V
             };
             // the spring nonlinearities act at the gear's frequency: finer sub-steps
             let sub = match nl {
-                Nl::Backlash { .. } | Nl::Hardening { .. } => 4 * data.substeps,
+                Nl::Backlash { .. } | Nl::Hardening { .. } => data.spring_substeps,
                 _ => data.substeps,
             };
             let out = simulate(lin, nl, &u[..n], data.fs, sub);

@@ -156,6 +156,16 @@ pub fn build(t: &[f64], n: usize, k: Lin) -> Option<LinExt> {
     if e.iter().any(|v| !v.is_finite() || v.abs() > 60.0) {
         return None;
     }
+    // gravity stiffer than the last spring would ground the last body: a different model
+    // (the chain one body shorter), not a restoring stiffness
+    if k == Lin::Gravity
+        && m.chain
+            .stiffness_nm_per_rad
+            .last()
+            .is_some_and(|&c| m.ground_k > c)
+    {
+        return None;
+    }
     Some(m)
 }
 
@@ -241,13 +251,41 @@ pub fn fit_best_start(
     scored.sort_by(|a, b| a.0.total_cmp(&b.0));
     let mut best: Option<(LinExt, LmResult)> = None;
     for (_, s) in scored.into_iter().take(keep) {
-        if let Some((m, r)) = fit_linear(data, &data.targets, k, s, iters) {
+        let fit = if k == Lin::Gravity {
+            prefit_then_joint(data, k, s, iters)
+        } else {
+            fit_linear(data, &data.targets, k, s, iters)
+        };
+        if let Some((m, r)) = fit {
             if best.as_ref().is_none_or(|b| r.cost < b.1.cost) {
                 best = Some((m, r));
             }
         }
     }
     best
+}
+
+/// The effect's own parameters first (chain held), then everything jointly: for effects
+/// that the nominal chain has bent itself to mimic (gravity).
+pub fn prefit_then_joint(
+    data: &Data,
+    k: Lin,
+    start: &LinExt,
+    iters: usize,
+) -> Option<(LinExt, LmResult)> {
+    let n = start.chain.masses();
+    let t0 = theta(start, k);
+    let nc = 3 * n - 2;
+    let chain_t = t0[..nc].to_vec();
+    let r0 = minimise(&t0[nc..], 30, |e| {
+        let mut t = chain_t.clone();
+        t.extend_from_slice(e);
+        residuals(&build(&t, n, k)?, data, &data.targets)
+    })?;
+    let mut t1 = chain_t.clone();
+    t1.extend(r0.x);
+    let s1 = build(&t1, n, k)?;
+    fit_linear(data, &data.targets, k, &s1, iters)
 }
 
 /// Std of the value of log-parameter `i` (value `v`): `v * sqrt(cov_ii)`.

@@ -29,6 +29,7 @@
 pub mod analysis;
 pub mod cli;
 pub mod daemon;
+pub mod diagnose;
 pub mod excitation;
 pub mod frf;
 pub mod identify;

@@ -9,6 +9,7 @@
 
 mod commands;
 mod demo;
+pub mod diagnose;
 mod excite;
 pub mod plant;
 pub mod sweep;
@@ -45,6 +46,9 @@ pub enum Command {
     Sweep(sweep::SweepArgs),
     /// The identification service: HTTP API, results store, MQTT (runs until SIGTERM).
     Daemon(DaemonArgs),
+    /// Diagnose the gap between the identified chain and the measurement: where, which
+    /// unmodelled effect, and how far it shrinks with it (one recording per amplitude).
+    Diagnose(diagnose::DiagnoseArgs),
 }
 
 #[derive(Debug, Args)]
@@ -196,5 +200,6 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
             message: e.to_string(),
             code: e.exit_code(),
         }),
+        Command::Diagnose(a) => diagnose::diagnose(&a),
     }
 }

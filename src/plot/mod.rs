@@ -7,11 +7,13 @@
 mod axes;
 mod bode;
 mod error;
+mod gap;
 mod series;
 mod units;
 
 pub use bode::BodePlot;
 pub use error::PlotError;
+pub use gap::gap_svg;
 pub use series::{BAND_FLOOR_RELATIVE, PHASE_BAND_MAX_DEG};
 pub use units::{frf_unit, magnitude_label};
 

@@ -1,0 +1,170 @@
+//! The withheld-effect benchmark: for each of the eight classes (including `none`), random
+//! 3-mass axes with one effect of random size, two excitation amplitudes, simulated by the
+//! fine-step RK4 `PlantSim`; recordings and a truth file written to a temporary directory,
+//! the diagnosis run on the recordings alone (the library's `diagnose`, as `flexid
+//! diagnose` calls it), then the truth read back for the confusion matrix, the per-class gap
+//! ratio and the timing.
+//!
+//!     cargo bench --bench withheld_effect -- [CASES_PER_CLASS] [--quick] [--class NAME]
+//!
+//! Exit status 1 when a class misses 90 % correct or (except `none`) its worst gap ratio
+//! (after/before) exceeds 0.5.
+
+#[path = "../tests/common/withheld.rs"]
+mod withheld;
+
+use flexid::diagnose::{diagnose, DiagnoseOptions};
+use flexid::recording::read_recording;
+use withheld::{generate, CLASSES};
+
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let quick = args.iter().any(|a| a == "--quick");
+    let mut per_class: usize = if quick { 3 } else { 20 };
+    let mut only: Option<String> = None;
+    let mut seed0: u64 = 1000;
+    let mut i = 0;
+    while i < args.len() {
+        match args[i].as_str() {
+            "--class" => {
+                only = args.get(i + 1).cloned();
+                i += 1;
+            }
+            "--seed" => {
+                seed0 = args[i + 1].parse().unwrap();
+                i += 1;
+            }
+            a if a.parse::<usize>().is_ok() => per_class = a.parse().unwrap(),
+            _ => {}
+        }
+        i += 1;
+    }
+    let dir = std::env::temp_dir().join(format!("flexid-withheld-{}", std::process::id()));
+    let classes: Vec<&str> = CLASSES
+        .iter()
+        .copied()
+        .filter(|c| only.as_deref().is_none_or(|o| o == *c))
+        .collect();
+    let mut confusion = vec![vec![0usize; CLASSES.len()]; CLASSES.len()];
+    let mut ratios: Vec<Vec<f64>> = vec![Vec::new(); CLASSES.len()];
+    let mut times = Vec::new();
+    for class in &classes {
+        let ci = CLASSES.iter().position(|c| c == class).unwrap();
+        for k in 0..per_class {
+            let seed = seed0 + 100 * ci as u64 + k as u64;
+            let cdir = dir.join(format!("{class}-{k}"));
+            let case = generate(class, seed, &cdir);
+            // the diagnosis sees the recordings only
+            let recs: Vec<_> = case
+                .recordings
+                .iter()
+                .map(|p| read_recording(p).unwrap())
+                .collect();
+            let t = std::time::Instant::now();
+            let d = diagnose(
+                &recs,
+                &DiagnoseOptions {
+                    masses: 3,
+                    spring_substeps: std::env::var("WITHHELD_SPRING_SUBSTEPS")
+                        .ok()
+                        .and_then(|v| v.parse().ok())
+                        .unwrap_or(DiagnoseOptions::default().spring_substeps),
+                    ..DiagnoseOptions::default()
+                },
+            );
+            let secs = t.elapsed().as_secs_f64();
+            times.push(secs);
+            let truth: serde_json::Value =
+                serde_json::from_str(&std::fs::read_to_string(&case.truth_path).unwrap()).unwrap();
+            let want = truth["effect"].as_str().unwrap();
+            match d {
+                Ok(d) => {
+                    let vi = CLASSES.iter().position(|c| *c == d.verdict).unwrap();
+                    confusion[ci][vi] += 1;
+                    // the gap after the *true* effect's fit when the verdict is wrong is not
+                    // claimed: the ratio is the one the diagnosis reports
+                    let r = d.gap.after_rms_db / d.gap.before_rms_db;
+                    ratios[ci].push(r);
+                    let top: Vec<String> = d
+                        .ranking
+                        .iter()
+                        .take(3)
+                        .map(|r| format!("{}:{:.0}", r.effect, r.score))
+                        .collect();
+                    println!(
+                        "{want:20} seed {seed:5} -> {:20} gap {:.3} -> {:.3} dB ({:.2}) chi2r {:.2} {} [{}] {:.2} s",
+                        d.verdict,
+                        d.gap.before_rms_db,
+                        d.gap.after_rms_db,
+                        r,
+                        d.residual.reduced_chi2,
+                        if d.residual.nonlinear { "NL" } else { "L" },
+                        top.join(" "),
+                        secs
+                    );
+                    if std::env::var_os("WITHHELD_VERBOSE").is_some() {
+                        println!("{}", truth);
+                        println!("{}", flexid::diagnose::report::render(&d));
+                    }
+                }
+                Err(e) => println!("{want:20} seed {seed:5} -> error {e}"),
+            }
+            if std::env::var_os("WITHHELD_KEEP").is_none() {
+                let _ = std::fs::remove_dir_all(&cdir);
+            }
+        }
+    }
+    if std::env::var_os("WITHHELD_KEEP").is_none() {
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+    println!("\nconfusion matrix (rows: truth, columns: verdict)");
+    print!("{:20}", "");
+    for c in CLASSES {
+        print!(" {:>6}", &c[..c.len().min(6)]);
+    }
+    println!("  correct");
+    let mut ok = true;
+    for (ci, c) in CLASSES.iter().enumerate() {
+        let n: usize = confusion[ci].iter().sum();
+        if n == 0 {
+            continue;
+        }
+        print!("{c:20}");
+        for v in &confusion[ci] {
+            print!(" {v:>6}");
+        }
+        let frac = confusion[ci][ci] as f64 / n as f64;
+        println!("  {:5.1} %", 100.0 * frac);
+        ok &= frac >= 0.9;
+    }
+    println!("\ngap ratio after/before (diagnosis's verdict), per class: median / worst");
+    for (ci, c) in CLASSES.iter().enumerate() {
+        let mut r = ratios[ci].clone();
+        if r.is_empty() {
+            continue;
+        }
+        r.sort_by(f64::total_cmp);
+        let worst = *r.last().unwrap();
+        println!("{c:20} {:.3} / {:.3}", r[r.len() / 2], worst);
+        if *c != "none" {
+            ok &= worst <= 0.5;
+        }
+    }
+    times.sort_by(f64::total_cmp);
+    if !times.is_empty() {
+        println!(
+            "\ndiagnosis time per case (2 levels, 3 masses): median {:.2} s, max {:.2} s",
+            times[times.len() / 2],
+            times.last().unwrap()
+        );
+    }
+    // A benchmark reports; the always-run assertions are in tests/withheld_effect.rs.
+    // FLEXID_BENCH_STRICT=1 turns a missed target into a failure (for acceptance runs).
+    println!(
+        "\ntargets (>= 90 % right per class, gap halved for every class but none): {}",
+        if ok { "met" } else { "MISSED" }
+    );
+    if !ok && std::env::var("FLEXID_BENCH_STRICT").is_ok_and(|v| v == "1") {
+        std::process::exit(1);
+    }
+}

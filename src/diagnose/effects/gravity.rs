@@ -1,0 +1,38 @@
+//! `gravity`: a restoring stiffness from the load to the ground (at small angles
+//! `m g l`), so that the low-frequency end no longer behaves like a free inertia; with the
+//! damping of the swinging mode it creates (a motor-ground damper: without one the mode
+//! never settles).
+
+use super::{finish_linear, fit_best_start, log_std, EffectFit, Lin, Param};
+use crate::diagnose::lti::LinExt;
+use crate::diagnose::Data;
+
+pub fn fit(data: &Data, nominal: &LinExt) -> Option<EffectFit> {
+    let jt = nominal.chain.total_inertia();
+    let w0 = 2.0 * std::f64::consts::PI * data.f_min();
+    let starts: Vec<LinExt> = [0.1, 0.3, 1.0, 3.0, 10.0, 30.0, 100.0]
+        .iter()
+        .flat_map(|m| [0.02, 0.1, 0.3].map(|z| (*m, z)))
+        .map(|(m, z)| {
+            let mut s = nominal.clone();
+            s.ground_k = m * jt * w0 * w0;
+            s.motor_b = 2.0 * z * (s.ground_k * jt).sqrt();
+            s
+        })
+        .collect();
+    let (m, r) = fit_best_start(data, Lin::Gravity, &starts, 80, 3)?;
+    let i0 = 3 * m.chain.masses() - 2;
+    let p = vec![
+        Param {
+            name: "m_g_l_nm".into(),
+            value: m.ground_k,
+            std: log_std(&r, i0, m.ground_k),
+        },
+        Param {
+            name: "damping_nms_per_rad".into(),
+            value: m.motor_b,
+            std: log_std(&r, i0 + 1, m.motor_b),
+        },
+    ];
+    Some(finish_linear(data, "gravity", m, p, 2))
+}

@@ -1,0 +1,315 @@
+//! The candidate effects, each a model extension with its own few parameters, identified on
+//! the same data as the nominal chain.
+//!
+//! Linear ones (`delay`, `current_loop`, `mode`, `gravity`) are fitted in the frequency
+//! domain jointly with the chain ([`fit_linear`]); amplitude-dependent ones (`friction`,
+//! `backlash`, `hardening`) by a small parameter search with the time-domain simulation of
+//! [`super::nlsim`] on the recorded excitation, the chain corrected between rounds.
+
+pub mod backlash;
+pub mod current_loop;
+pub mod delay;
+pub mod friction;
+pub mod gravity;
+pub mod hardening;
+pub mod mode;
+
+use super::lm::{minimise, LmResult};
+use super::lti::{Discrete, LinExt, Loop};
+use super::Data;
+use crate::model::Chain;
+use num_complex::Complex64;
+use serde::Serialize;
+
+/// One identified parameter of an effect.
+#[derive(Debug, Clone, Serialize)]
+pub struct Param {
+    pub name: String,
+    pub value: f64,
+    /// One-sigma uncertainty (NaN when not available).
+    pub std: f64,
+}
+
+/// An effect identified on the data.
+#[derive(Debug, Clone)]
+pub struct EffectFit {
+    pub effect: &'static str,
+    pub params: Vec<Param>,
+    /// Parameters the effect adds to the nominal chain.
+    pub added: usize,
+    /// `sum |H_meas - H_model|²/var` over all lines of all levels.
+    pub chi2: f64,
+    /// Model FRF per level on the measured lines.
+    pub model: Vec<Vec<Complex64>>,
+    /// The linear part (chain and linear extensions) under the effect.
+    pub lin: LinExt,
+}
+
+impl EffectFit {
+    pub fn param(name: &str, value: f64, std: f64) -> Param {
+        Param {
+            name: name.into(),
+            value,
+            std,
+        }
+    }
+}
+
+/// Which linear extension a parameter vector describes.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Lin {
+    None,
+    Delay,
+    Loop1,
+    Loop2,
+    Gravity,
+    /// One more body (chain of n+1).
+    Mode,
+    /// Viscous damping motor-ground.
+    Viscous,
+}
+
+impl Lin {
+    fn extra(self) -> usize {
+        match self {
+            Lin::None | Lin::Mode => 0,
+            Lin::Loop2 | Lin::Gravity => 2,
+            _ => 1,
+        }
+    }
+}
+
+/// Log-parameters of a chain: ln J, ln c, ln d (dampings floored).
+pub fn chain_theta(c: &Chain) -> Vec<f64> {
+    let mut t: Vec<f64> = c.inertia_kgm2.iter().map(|v| v.ln()).collect();
+    t.extend(c.stiffness_nm_per_rad.iter().map(|v| v.ln()));
+    for (i, &d) in c.damping_nms_per_rad.iter().enumerate() {
+        let (ja, jb) = (c.inertia_kgm2[i], c.inertia_kgm2[i + 1]);
+        let crit = 2.0 * (c.stiffness_nm_per_rad[i] * ja * jb / (ja + jb)).sqrt();
+        t.push(d.max(1e-4 * crit).ln());
+    }
+    t
+}
+
+fn chain_of(t: &[f64], n: usize) -> Option<Chain> {
+    if t.iter().any(|v| !v.is_finite() || v.abs() > 60.0) {
+        return None;
+    }
+    Chain::new(
+        t[..n].iter().map(|v| v.exp()).collect(),
+        t[n..2 * n - 1].iter().map(|v| v.exp()).collect(),
+        t[2 * n - 1..3 * n - 2].iter().map(|v| v.exp()).collect(),
+    )
+    .ok()
+}
+
+/// Parameter vector of `m` for extension `k`.
+pub fn theta(m: &LinExt, k: Lin) -> Vec<f64> {
+    let mut t = chain_theta(&m.chain);
+    let fs_guard = 1e-12;
+    match k {
+        Lin::None | Lin::Mode => {}
+        Lin::Delay => t.push(m.delay_s * 1e3),
+        Lin::Loop1 | Lin::Loop2 => {
+            let l = m.current_loop.expect("loop");
+            t.push(l.bandwidth_hz.ln());
+            if k == Lin::Loop2 {
+                t.push(l.zeta.ln());
+            }
+        }
+        Lin::Gravity => {
+            t.push(m.ground_k.max(fs_guard).ln());
+            t.push(m.motor_b.max(fs_guard).ln());
+        }
+        Lin::Viscous => t.push(m.motor_b.max(fs_guard).ln()),
+    }
+    t
+}
+
+/// The model a parameter vector describes (`n`: bodies of its chain).
+pub fn build(t: &[f64], n: usize, k: Lin) -> Option<LinExt> {
+    let mut m = LinExt::nominal(chain_of(t, n)?);
+    let e = &t[3 * n - 2..];
+    match k {
+        Lin::None | Lin::Mode => {}
+        Lin::Delay => m.delay_s = (e[0] * 1e-3).max(0.0),
+        Lin::Loop1 => {
+            m.current_loop = Some(Loop {
+                order: 1,
+                bandwidth_hz: e[0].exp(),
+                zeta: 0.7,
+            })
+        }
+        Lin::Loop2 => {
+            m.current_loop = Some(Loop {
+                order: 2,
+                bandwidth_hz: e[0].exp(),
+                zeta: e[1].exp().min(5.0),
+            })
+        }
+        Lin::Gravity => {
+            m.ground_k = e[0].exp();
+            m.motor_b = e[1].exp();
+        }
+        Lin::Viscous => m.motor_b = e[0].exp(),
+    }
+    if e.iter().any(|v| !v.is_finite() || v.abs() > 60.0) {
+        return None;
+    }
+    // gravity stiffer than the last spring would ground the last body: a different model
+    // (the chain one body shorter), not a restoring stiffness
+    if k == Lin::Gravity
+        && m.chain
+            .stiffness_nm_per_rad
+            .last()
+            .is_some_and(|&c| m.ground_k > c)
+    {
+        return None;
+    }
+    Some(m)
+}
+
+/// The targets of a fit: per level the (decimated) lines, the response to match and the
+/// weights `|H|/sigma`.
+#[derive(Debug, Clone)]
+pub struct Target {
+    /// Indices of the lines in the level's measured FRF.
+    pub idx: Vec<usize>,
+    pub f: Vec<f64>,
+    pub h: Vec<Complex64>,
+    pub w: Vec<f64>,
+    pub io_delay: u32,
+}
+
+/// Model FRF per level on lines `f` of each target.
+pub fn model_on(
+    m: &LinExt,
+    fs: f64,
+    kind: crate::frf::FrfKind,
+    targets: &[Target],
+) -> Vec<Vec<Complex64>> {
+    let mut cache: Option<(u32, Discrete)> = None;
+    targets
+        .iter()
+        .map(|t| {
+            if cache.as_ref().map(|c| c.0) != Some(t.io_delay) {
+                cache = Some((t.io_delay, Discrete::new(m, fs, t.io_delay)));
+            }
+            cache.as_ref().unwrap().1.frf_lines(&t.f, kind)
+        })
+        .collect()
+}
+
+fn residuals(m: &LinExt, data: &Data, targets: &[Target]) -> Option<Vec<f64>> {
+    let mut r = Vec::new();
+    for (t, hm) in targets.iter().zip(model_on(m, data.fs, data.kind, targets)) {
+        for ((h, w), hm) in t.h.iter().zip(&t.w).zip(hm) {
+            let l = (hm / h).ln() * *w;
+            if !l.re.is_finite() || !l.im.is_finite() {
+                return None;
+            }
+            r.push(l.re);
+            r.push(l.im);
+        }
+    }
+    Some(r)
+}
+
+/// Fit the chain and extension `k` jointly to `targets` from `start` (whose chain has
+/// `n` bodies). Returns the model and the LM result (parameters in [`theta`] order).
+pub fn fit_linear(
+    data: &Data,
+    targets: &[Target],
+    k: Lin,
+    start: &LinExt,
+    iters: usize,
+) -> Option<(LinExt, LmResult)> {
+    let n = start.chain.masses();
+    let t0 = theta(start, k);
+    debug_assert_eq!(t0.len(), 3 * n - 2 + k.extra());
+    let r = minimise(&t0, iters, |t| residuals(&build(t, n, k)?, data, targets))?;
+    Some((build(&r.x, n, k)?, r))
+}
+
+/// Screen `starts` by their cost (one evaluation each) and refine the best `keep` of them;
+/// the best refined fit.
+pub fn fit_best_start(
+    data: &Data,
+    k: Lin,
+    starts: &[LinExt],
+    iters: usize,
+    keep: usize,
+) -> Option<(LinExt, LmResult)> {
+    let mut scored: Vec<(f64, &LinExt)> = starts
+        .iter()
+        .filter_map(|s| {
+            let r = residuals(s, data, &data.targets)?;
+            Some((r.iter().map(|v| v * v).sum::<f64>(), s))
+        })
+        .filter(|(c, _)| c.is_finite())
+        .collect();
+    scored.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let mut best: Option<(LinExt, LmResult)> = None;
+    for (_, s) in scored.into_iter().take(keep) {
+        let fit = if k == Lin::Gravity {
+            prefit_then_joint(data, k, s, iters)
+        } else {
+            fit_linear(data, &data.targets, k, s, iters)
+        };
+        if let Some((m, r)) = fit {
+            if best.as_ref().is_none_or(|b| r.cost < b.1.cost) {
+                best = Some((m, r));
+            }
+        }
+    }
+    best
+}
+
+/// The effect's own parameters first (chain held), then everything jointly: for effects
+/// that the nominal chain has bent itself to mimic (gravity).
+pub fn prefit_then_joint(
+    data: &Data,
+    k: Lin,
+    start: &LinExt,
+    iters: usize,
+) -> Option<(LinExt, LmResult)> {
+    let n = start.chain.masses();
+    let t0 = theta(start, k);
+    let nc = 3 * n - 2;
+    let chain_t = t0[..nc].to_vec();
+    let r0 = minimise(&t0[nc..], 30, |e| {
+        let mut t = chain_t.clone();
+        t.extend_from_slice(e);
+        residuals(&build(&t, n, k)?, data, &data.targets)
+    })?;
+    let mut t1 = chain_t.clone();
+    t1.extend(r0.x);
+    let s1 = build(&t1, n, k)?;
+    fit_linear(data, &data.targets, k, &s1, iters)
+}
+
+/// Std of the value of log-parameter `i` (value `v`): `v * sqrt(cov_ii)`.
+pub fn log_std(r: &LmResult, i: usize, v: f64) -> f64 {
+    let np = r.x.len();
+    v * r.cov[i * np + i].max(0.0).sqrt()
+}
+
+/// The finished effect: model on all lines, chi² and parameters.
+pub fn finish_linear(
+    data: &Data,
+    effect: &'static str,
+    lin: LinExt,
+    params: Vec<Param>,
+    added: usize,
+) -> EffectFit {
+    let model = model_on(&lin, data.fs, data.kind, &data.full_targets);
+    let chi2 = data.chi2(&model);
+    EffectFit {
+        effect,
+        params,
+        added,
+        chi2,
+        model,
+        lin,
+    }
+}

@@ -1,0 +1,255 @@
+//! The nominal chain and its linear extensions on the exact sampled footing, as one
+//! continuous state space discretised under zero-order hold with an exact fractional delay:
+//! ground stiffness on the last body (gravity), ground damping on the motor (viscous
+//! friction), a current loop (order 1 or 2) between command and torque, a pure delay.
+//!
+//! Independent of [`crate::model::SampledChain`] (which it reproduces for the plain chain):
+//! `x[k+1] = Ad x[k] + G1 u[k-m] + G0 u[k-m-1]`, `G1 = int_0^(T-δ) e^(Aσ) dσ B`,
+//! `G0 = e^(A(T-δ)) int_0^δ e^(Aσ) dσ B`, with the delay `m T + δ`.
+
+use crate::frf::FrfKind;
+use crate::model::Chain;
+use nalgebra::{DMatrix, DVector};
+use num_complex::Complex64;
+
+/// Current loop between the command and the motor torque.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Loop {
+    /// 1: `1/(1+s/wc)`; 2: `wc²/(s²+2ζ wc s+wc²)`.
+    pub order: u8,
+    /// Corner / natural frequency [Hz].
+    pub bandwidth_hz: f64,
+    /// Damping ratio (order 2).
+    pub zeta: f64,
+}
+
+/// The chain with its linear extensions (all off = the nominal model).
+#[derive(Debug, Clone, PartialEq)]
+pub struct LinExt {
+    pub chain: Chain,
+    /// Restoring stiffness from the last body to the ground [N m/rad] (gravity, small angles).
+    pub ground_k: f64,
+    /// Viscous damping from the motor to the ground [N m s/rad].
+    pub motor_b: f64,
+    pub current_loop: Option<Loop>,
+    /// Delay [s] beyond the recording's whole-sample `io_delay`.
+    pub delay_s: f64,
+}
+
+impl LinExt {
+    pub fn nominal(chain: Chain) -> Self {
+        LinExt {
+            chain,
+            ground_k: 0.0,
+            motor_b: 0.0,
+            current_loop: None,
+            delay_s: 0.0,
+        }
+    }
+
+    /// Continuous `(A, B)`; `B` has one column per input: the command, then (with
+    /// `extra_inputs`) a torque on the motor and a torque pair `(+1, -1)` on the bodies of
+    /// coupling `coupling` (used by the time-domain simulation).
+    pub fn continuous(&self, coupling: Option<usize>) -> (DMatrix<f64>, DMatrix<f64>) {
+        let ch = &self.chain;
+        let n = ch.masses();
+        let lo = match self.current_loop {
+            None => 0,
+            Some(l) => l.order.clamp(1, 2) as usize,
+        };
+        let ns = 2 * n + lo;
+        let ni = if coupling.is_some() { 3 } else { 1 };
+        let mut a = DMatrix::zeros(ns, ns);
+        let mut b = DMatrix::zeros(ns, ni);
+        let j = &ch.inertia_kgm2;
+        for i in 0..n {
+            a[(i, n + i)] = 1.0;
+        }
+        for i in 0..n - 1 {
+            let (c, d) = (ch.stiffness_nm_per_rad[i], ch.damping_nms_per_rad[i]);
+            for (row, s) in [(i, 1.0), (i + 1, -1.0)] {
+                a[(n + row, i)] -= s * c / j[row];
+                a[(n + row, i + 1)] += s * c / j[row];
+                a[(n + row, n + i)] -= s * d / j[row];
+                a[(n + row, n + i + 1)] += s * d / j[row];
+            }
+        }
+        a[(2 * n - 1, n - 1)] -= self.ground_k / j[n - 1];
+        a[(n, n)] -= self.motor_b / j[0];
+        match self.current_loop {
+            None => b[(n, 0)] = 1.0 / j[0],
+            Some(l) => {
+                let wc = 2.0 * std::f64::consts::PI * l.bandwidth_hz;
+                let t = 2 * n;
+                a[(n, t)] = 1.0 / j[0];
+                if lo == 1 {
+                    a[(t, t)] = -wc;
+                    b[(t, 0)] = wc;
+                } else {
+                    a[(t, t + 1)] = 1.0;
+                    a[(t + 1, t)] = -wc * wc;
+                    a[(t + 1, t + 1)] = -2.0 * l.zeta * wc;
+                    b[(t + 1, 0)] = wc * wc;
+                }
+            }
+        }
+        if let Some(k) = coupling {
+            b[(n, 1)] = 1.0 / j[0];
+            b[(n + k, 2)] = 1.0 / j[k];
+            b[(n + k + 1, 2)] = -1.0 / j[k + 1];
+        }
+        (a, b)
+    }
+}
+
+/// `(e^(A t), int_0^t e^(Aσ) dσ B)`.
+pub fn zoh(a: &DMatrix<f64>, b: &DMatrix<f64>, t: f64) -> (DMatrix<f64>, DMatrix<f64>) {
+    let (ns, ni) = (a.nrows(), b.ncols());
+    let mut aug = DMatrix::<f64>::zeros(ns + ni, ns + ni);
+    aug.view_mut((0, 0), (ns, ns)).copy_from(&(a * t));
+    aug.view_mut((0, ns), (ns, ni)).copy_from(&(b * t));
+    let e = aug.exp();
+    (
+        e.view((0, 0), (ns, ns)).into_owned(),
+        e.view((0, ns), (ns, ni)).into_owned(),
+    )
+}
+
+/// The discretised model, ready to give its FRF on any line.
+#[derive(Debug, Clone)]
+pub struct Discrete {
+    ad: DMatrix<f64>,
+    g1: DVector<f64>,
+    g0: DVector<f64>,
+    whole: i32,
+    n: usize,
+    ts: f64,
+}
+
+impl Discrete {
+    /// `io_delay_samples`: the recording's whole-sample delay, added to `m.delay_s`.
+    pub fn new(m: &LinExt, fs: f64, io_delay_samples: u32) -> Self {
+        let ts = 1.0 / fs;
+        let (a, b) = m.continuous(None);
+        let total = m.delay_s.max(0.0) + io_delay_samples as f64 * ts;
+        let mut whole = (total / ts).floor();
+        let mut delta = total - whole * ts;
+        if delta > ts * (1.0 - 1e-12) {
+            whole += 1.0;
+            delta = 0.0;
+        }
+        let (ad, phi_all) = zoh(&a, &b, ts);
+        let (g1, g0) = if delta <= 1e-15 * ts {
+            (phi_all.column(0).into_owned(), DVector::zeros(a.nrows()))
+        } else {
+            let (_, phi1) = zoh(&a, &b, ts - delta);
+            let (e1, _) = zoh(&a, &b, ts - delta);
+            let (_, phid) = zoh(&a, &b, delta);
+            (
+                phi1.column(0).into_owned(),
+                (e1 * phid).column(0).into_owned(),
+            )
+        };
+        Discrete {
+            ad,
+            g1,
+            g0,
+            whole: whole as i32,
+            n: m.chain.masses(),
+            ts,
+        }
+    }
+
+    /// Response at `f_hz` for the FRF kind of the measurement.
+    pub fn frf(&self, f_hz: f64, kind: FrfKind) -> Complex64 {
+        let ns = self.ad.nrows();
+        let z = Complex64::from_polar(1.0, 2.0 * std::f64::consts::PI * f_hz * self.ts);
+        let zi = 1.0 / z;
+        // solve (z I - Ad) x = g1 + g0 / z  by Gaussian elimination with partial pivoting
+        let mut m = vec![Complex64::new(0.0, 0.0); ns * (ns + 1)];
+        let w = ns + 1;
+        for r in 0..ns {
+            for c in 0..ns {
+                m[r * w + c] = Complex64::new(-self.ad[(r, c)], 0.0);
+            }
+            m[r * w + r] += z;
+            m[r * w + ns] = self.g1[r] + self.g0[r] * zi;
+        }
+        for col in 0..ns {
+            let mut p = col;
+            for r in col + 1..ns {
+                if m[r * w + col].norm_sqr() > m[p * w + col].norm_sqr() {
+                    p = r;
+                }
+            }
+            if p != col {
+                for c in 0..w {
+                    m.swap(col * w + c, p * w + c);
+                }
+            }
+            let piv = m[col * w + col];
+            for r in col + 1..ns {
+                let f = m[r * w + col] / piv;
+                if f.norm_sqr() == 0.0 {
+                    continue;
+                }
+                for c in col..w {
+                    let v = m[col * w + c];
+                    m[r * w + c] -= f * v;
+                }
+            }
+        }
+        let mut x = vec![Complex64::new(0.0, 0.0); ns];
+        for r in (0..ns).rev() {
+            let mut s = m[r * w + ns];
+            for c in r + 1..ns {
+                s -= m[r * w + c] * x[c];
+            }
+            x[r] = s / m[r * w + r];
+        }
+        let d = zi.powi(self.whole);
+        match kind {
+            FrfKind::Position => x[0] * d,
+            FrfKind::Velocity => x[self.n] * d,
+            _ => x[0] * d * (1.0 - zi) / self.ts,
+        }
+    }
+
+    pub fn frf_lines(&self, f: &[f64], kind: FrfKind) -> Vec<Complex64> {
+        f.iter().map(|&f| self.frf(f, kind)).collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::SampledChain;
+
+    fn chain3() -> Chain {
+        Chain::new(
+            vec![3.614e-3, 5.098e-3, 17.188e-3],
+            vec![2.906e4, 5.706],
+            vec![0.47, 0.018],
+        )
+        .unwrap()
+    }
+
+    #[test]
+    fn diagnose_lti_reproduces_sampled_chain_and_whole_delays() {
+        let fs = 2000.0;
+        let sc = SampledChain::new(&chain3(), fs, 1).unwrap();
+        let mut m = LinExt::nominal(chain3());
+        let d = Discrete::new(&m, fs, 1);
+        for f in [0.5, 3.0, 5.0, 100.0, 380.0, 590.0, 900.0] {
+            let (a, b) = (d.frf(f, FrfKind::DifferencedVelocity), sc.frf(f));
+            assert!((a - b).norm() < 1e-7 * b.norm(), "{f}: {a} {b}");
+        }
+        // a delay of exactly one sample through delay_s equals io_delay 1
+        m.delay_s = 1.0 / fs;
+        let d2 = Discrete::new(&m, fs, 0);
+        for f in [3.0, 590.0] {
+            let (a, b) = (d2.frf(f, FrfKind::DifferencedVelocity), sc.frf(f));
+            assert!((a - b).norm() < 1e-7 * b.norm(), "{f}: {a} {b}");
+        }
+    }
+}

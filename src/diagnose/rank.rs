@@ -1,0 +1,80 @@
+//! Rank the candidates by how much of the gap each removes, penalised for the parameters it
+//! adds (BIC: with the line variances known, chi² is -2 ln L up to a constant, so each added
+//! parameter costs ln(lines)); the winner is named only when its improvement is significant.
+
+use super::effects::{EffectFit, Param};
+use super::{Data, ResidualKind};
+use serde::Serialize;
+
+/// Reduced chi² of the nominal model below which the gap is taken as noise.
+pub const NOISE_CHI2: f64 = 1.6;
+/// A winner must remove at least this fraction of the nominal chi².
+pub const MIN_REDUCTION: f64 = 0.02;
+
+/// One candidate in the ranking.
+#[derive(Debug, Clone, Serialize)]
+pub struct Ranked {
+    pub effect: &'static str,
+    /// RMS log-complex gap with this effect [dB].
+    pub after_rms_db: f64,
+    /// chi² reduction over the nominal model minus `added * ln(lines)` (BIC); > 0: better.
+    pub score: f64,
+    pub chi2: f64,
+    pub added_params: usize,
+    pub params: Vec<Param>,
+}
+
+fn rms_db(data: &Data, e: &EffectFit) -> f64 {
+    super::rms_parts(data, &e.model).0
+}
+
+/// The ranking (best first, `none` included) and the index in `fits` of the winner.
+pub fn rank(
+    data: &Data,
+    nominal: &EffectFit,
+    fits: &[EffectFit],
+    residual: &ResidualKind,
+) -> (Vec<Ranked>, Option<usize>) {
+    let pen = (data.lines() as f64).ln();
+    let mut r: Vec<(Ranked, Option<usize>)> = fits
+        .iter()
+        .enumerate()
+        .map(|(i, e)| {
+            (
+                Ranked {
+                    effect: e.effect,
+                    after_rms_db: rms_db(data, e),
+                    score: nominal.chi2 - e.chi2 - pen * e.added as f64,
+                    chi2: e.chi2,
+                    added_params: e.added,
+                    params: e.params.clone(),
+                },
+                Some(i),
+            )
+        })
+        .collect();
+    r.push((
+        Ranked {
+            effect: "none",
+            after_rms_db: rms_db(data, nominal),
+            score: 0.0,
+            chi2: nominal.chi2,
+            added_params: 0,
+            params: vec![],
+        },
+        None,
+    ));
+    r.sort_by(|a, b| b.0.score.total_cmp(&a.0.score));
+    let best = &r[0];
+    let win = match best.1 {
+        Some(i)
+            if !residual.within_noise
+                && best.0.score > 0.0
+                && fits[i].chi2 < (1.0 - MIN_REDUCTION) * nominal.chi2 =>
+        {
+            Some(i)
+        }
+        _ => None,
+    };
+    (r.into_iter().map(|x| x.0).collect(), win)
+}

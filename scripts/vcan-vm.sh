@@ -34,7 +34,7 @@
 # Guest side: busybox init script (below, `guest_init`) loads virtio/9p/overlay/CAN
 # modules, creates vcan0, mounts host / (9p, read-only) under a RAM overlay at /host (the
 # command may write, e.g. cargo's lock file; nothing reaches the host), mounts proc,
-# sysfs, devtmpfs and tmpfs (/tmp, /run, /dev/shm) inside it, chroots, cds and runs the
+# sysfs, devtmpfs and tmpfs (/run, /dev/shm; /tmp only without the overlay) inside it, chroots, cds and runs the
 # command (stdin /dev/null, stdout and stderr through a pipe: no tty), prints
 # `VCAN-VM-EXIT=<code> <nonce>` and powers off. The command and environment reach the guest as a
 # small extra cpio archive appended to the initramfs (no kernel command line limits).
@@ -224,18 +224,25 @@ mount -t 9p -o trans=virtio,version=9p2000.L,msize=512000,cache=loose,ro hostroo
     fail "mount host root over 9p"
 # A throwaway writable layer (RAM) over the read-only host root, so that commands which
 # write beside their files (cargo's lock file in target/) work; nothing reaches the host.
+overlay=1
 mount -t tmpfs rw /rw && mkdir -p /rw/upper /rw/work &&
     mount -t overlay overlay -o lowerdir=/hostro,upperdir=/rw/upper,workdir=/rw/work /host ||
-    { echo "vcan-vm guest: no overlay, host root read-only"; mount --bind /hostro /host; }
+    { echo "vcan-vm guest: no overlay, host root read-only"; mount --bind /hostro /host; overlay=0; }
 mount -t proc proc /host/proc
 mount -t sysfs sys /host/sys
 mount -t devtmpfs dev /host/dev
 mkdir -p /host/dev/shm /host/dev/pts
 mount -t tmpfs shm /host/dev/shm
 mount -t devpts devpts /host/dev/pts
-mount -t tmpfs tmp /host/tmp
+# The overlay already makes /tmp writable and keeps the host's files there visible (a
+# checkout under /tmp, as CI may use, must stay reachable); only a read-only root needs a
+# fresh tmpfs.
+if [ "$overlay" = 0 ]; then
+    mount -t tmpfs tmp /host/tmp
+    chmod 1777 /host/tmp
+fi
 [ -d /host/run ] && mount -t tmpfs run /host/run
-chmod 1777 /host/tmp /host/dev/shm
+chmod 1777 /host/dev/shm
 echo "VCAN-VM-BEGIN $VCAN_VM_NONCE"
 # Through a pipe, not the console tty: what the command prints is read by the host (no
 # colours, no tty handling); stderr joins stdout in order.

@@ -269,30 +269,7 @@ pub(crate) fn demo_simulated(a: &DemoArgs) -> Result<(), CliError> {
     write_recording(&rec_path, &rec).map_err(|e| CliError::failed(e.to_string()))?;
     let an = run_analysis(&rec, &AnalysisOptions::default())?;
     print!("{}", render_report(&an, &rec_path.display().to_string()));
-    if let Some(m) = &an.model {
-        println!("\nAgainst the plant file (the truth in this simulation):");
-        let truth = &plant.chain;
-        if m.masses == truth.masses() {
-            for (name, got, want) in [
-                ("J", &m.inertia_kgm2, &truth.inertia_kgm2),
-                ("c", &m.stiffness_nm_per_rad, &truth.stiffness_nm_per_rad),
-            ] {
-                for (i, (g, w)) in got.iter().zip(want).enumerate() {
-                    println!(
-                        "  {name}{}: identified {g:.5e}, true {w:.5e}, error {:+.2} %",
-                        i + 1,
-                        100.0 * (g - w) / w
-                    );
-                }
-            }
-        } else {
-            println!(
-                "  identified {} bodies, the plant has {}",
-                m.masses,
-                truth.masses()
-            );
-        }
-    }
+    super::demo::print_truth(&an, &plant);
     write_json(&an, &a.out.join("result.json"))?;
     write_svg(
         &an,

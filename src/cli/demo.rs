@@ -147,7 +147,9 @@ fn start_vdrive(bin: &PathBuf, bus: &str, plant: Option<&PathBuf>) -> Result<VDr
     }
 }
 
-fn print_truth(an: &Analysis, plant: &PlantFile) {
+/// The identified inertias and stiffnesses next to the plant file's (the truth of a
+/// simulation), in the demo's output.
+pub(super) fn print_truth(an: &Analysis, plant: &PlantFile) {
     let Some(m) = &an.model else { return };
     println!("\nAgainst the plant file (the truth in this simulation):");
     let truth = &plant.chain;

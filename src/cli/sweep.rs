@@ -370,7 +370,7 @@ fn save(outcome: &mut SweepOutcome, info: DriveInfo, out: &Path) -> Result<PathB
     write_recording(&path, &outcome.recording).map_err(|e| CliError::failed(e.to_string()))?;
     let c = outcome.counters;
     eprintln!(
-        "flexid sweep: {} rows in {:.2} s ({:.0} cycles/s), feedback missed {} (late {}, lost {}), clamped {}; wrote {}",
+        "flexid sweep: {} rows in {:.2} s ({:.0} cycles/s), feedback missed {} (late {}, lost {}), clamped {}, master overruns {}; wrote {}",
         outcome.recording.len(),
         outcome.elapsed.as_secs_f64(),
         outcome.cycles_per_s(),
@@ -378,6 +378,7 @@ fn save(outcome: &mut SweepOutcome, info: DriveInfo, out: &Path) -> Result<PathB
         c.late,
         c.lost,
         c.saturated,
+        outcome.overruns,
         path.display()
     );
     Ok(path)

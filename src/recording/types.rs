@@ -107,6 +107,11 @@ pub struct CycleCounters {
     /// Frames for this exchange that could not be decoded.
     #[serde(default)]
     pub malformed: u64,
+    /// Cycles the master started more than half a period behind its schedule (a
+    /// preempted or overloaded host, real-time pacing only); the schedule then restarts
+    /// from that cycle instead of sending the missed SYNCs back to back.
+    #[serde(default)]
+    pub overruns: u64,
 }
 
 /// Which motion signal a recording's response columns hold.

@@ -121,6 +121,9 @@ pub struct SweepOutcome {
     pub counters: Counters,
     /// Wall time of the recorded cycles.
     pub elapsed: Duration,
+    /// Cycles started more than half a period behind the real-time schedule (the
+    /// schedule restarted from each of them; 0 in lock-step).
+    pub overruns: u64,
     /// Cycles run in the ramp to zero torque.
     pub ramp_cycles: usize,
     /// Why the ramp did not finish, if it did not.
@@ -181,6 +184,12 @@ pub fn run_sweep<D: CyclicDrive>(
     let mut reason = StopReason::Complete;
     let mut stop_cycle = n as u64;
     let mut last_torque = 0.0;
+    // Real-time schedule: cycle k's slot starts at `slot` and its feedback is due one
+    // period later. A master that falls more than half a period behind (preempted, a
+    // loaded host) restarts the schedule from now: firing the missed slots back to back
+    // would give the drive SYNCs closer than a period and this cycle no time to answer.
+    let mut slot = t0;
+    let mut overruns = 0u64;
 
     for k in 0..n {
         if stop.load(Ordering::Relaxed) {
@@ -197,7 +206,14 @@ pub fn run_sweep<D: CyclicDrive>(
             }
         }
         let deadline = match plan.pacing {
-            Pacing::Realtime => t0 + period.mul_f64((k + 1) as f64),
+            Pacing::Realtime => {
+                if now > slot + period / 2 {
+                    slot = now;
+                    overruns += 1;
+                }
+                slot += period;
+                slot
+            }
             Pacing::Lockstep => now + plan.feedback_timeout,
         };
         let fb = match drive.cycle(plan.torque_nm[k], deadline) {
@@ -306,6 +322,7 @@ pub fn run_sweep<D: CyclicDrive>(
                 lost: counters.lost,
                 saturated: counters.saturated,
                 malformed: counters.malformed,
+                overruns,
             }),
             ..Sidecar::default()
         },
@@ -316,6 +333,7 @@ pub fn run_sweep<D: CyclicDrive>(
         end,
         counters,
         elapsed,
+        overruns,
         ramp_cycles,
         ramp_error,
     }

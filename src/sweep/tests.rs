@@ -216,3 +216,97 @@ fn old_sidecars_stay_readable() {
     assert_eq!(s.drive.unwrap().node, 5);
     assert_eq!(s.cycle_counters.unwrap().lost, 1);
 }
+
+/// A drive that answers at once, except that cycle `stall_at` takes `stall` (a preempted
+/// master or a slow host); records how long every cycle had for its feedback.
+struct StallingDrive {
+    inner: SimulatedDrive,
+    stall_at: usize,
+    stall: std::time::Duration,
+    k: usize,
+    time_left: Vec<std::time::Duration>,
+}
+
+impl flexid_canopen::CyclicDrive for StallingDrive {
+    type Error = SimulatedFault;
+    fn cycle(
+        &mut self,
+        torque_nm: f64,
+        deadline: std::time::Instant,
+    ) -> Result<flexid_canopen::Feedback, SimulatedFault> {
+        self.time_left
+            .push(deadline.saturating_duration_since(std::time::Instant::now()));
+        if self.k == self.stall_at {
+            std::thread::sleep(self.stall);
+        }
+        self.k += 1;
+        self.inner.cycle(torque_nm, deadline)
+    }
+    fn cycle_period(&self) -> std::time::Duration {
+        self.inner.cycle_period()
+    }
+    fn rated_torque_nm(&self) -> f64 {
+        self.inner.rated_torque_nm()
+    }
+    fn counters(&self) -> flexid_canopen::Counters {
+        self.inner.counters()
+    }
+}
+
+#[test]
+fn realtime_schedule_restarts_after_a_stall_instead_of_bursting() {
+    // 200 Hz, 5 ms slots; cycle 3 stalls for 4 periods. Without the restart, cycles 4..7
+    // would be fired back to back with deadlines already past (no time for feedback).
+    let a = match Cli::try_parse_from([
+        "flexid",
+        "sweep",
+        "--bus",
+        "udp",
+        "--clock",
+        "realtime",
+        "--cycle-hz",
+        "200",
+        "--periods",
+        "1",
+        "--resolution-hz",
+        "10",
+        "--band",
+        "10",
+        "50",
+    ])
+    .unwrap()
+    .command
+    {
+        Command::Sweep(a) => a,
+        _ => unreachable!(),
+    };
+    let mut p = plan(&a).unwrap();
+    p.pacing = Pacing::Realtime;
+    let period = p.period();
+    let mut drive = StallingDrive {
+        inner: SimulatedDrive::new(&e2e_chain(), 200.0).unwrap(),
+        stall_at: 3,
+        stall: period * 4,
+        k: 0,
+        time_left: Vec::new(),
+    };
+    let out = run_sweep(&mut drive, &p, &AtomicBool::new(false), &mut quiet);
+    assert!(out.complete(), "{}", out.end.reason);
+    assert!(out.overruns >= 1, "the stall must be counted as an overrun");
+    assert_eq!(
+        out.recording.sidecar.cycle_counters.unwrap().overruns,
+        out.overruns
+    );
+    // Every recorded cycle after the stall got more than a third of a period to answer
+    // (a loaded test host may cost a little of it; a burst would give zero).
+    let starved: Vec<_> = drive.time_left[4..out.recording.len()]
+        .iter()
+        .enumerate()
+        .filter(|(_, d)| **d < period / 3)
+        .map(|(i, d)| (i + 4, *d))
+        .collect();
+    assert!(
+        starved.len() <= 2,
+        "cycles without time for their feedback: {starved:?}"
+    );
+}

@@ -15,7 +15,7 @@ use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};
 use std::time::Duration;
 
-const GROUP: &str = "239.74.163.2";
+const GROUP: std::net::Ipv4Addr = std::net::Ipv4Addr::new(239, 74, 163, 2);
 
 /// The sweep the demo runs on `plant`: line spacing a twelfth of the lowest
 /// anti-resonance, band up to 2.5 x the highest resonance (at most 0.4 x the cycle rate),
@@ -48,36 +48,6 @@ pub fn demo_sweep_args(plant: &PlantFile, bus: String, out: PathBuf) -> SweepArg
         out,
         masses: None,
     }
-}
-
-fn routed_to_lo() -> bool {
-    Command::new("ip")
-        .args(["route", "get", GROUP])
-        .output()
-        .is_ok_and(|o| {
-            o.status.success() && String::from_utf8_lossy(&o.stdout).contains(" dev lo ")
-        })
-}
-
-/// Keeps 239.0.0.0/8 on `lo`, setting it up when root (as flexid-can's tests do).
-fn loopback_multicast() -> Result<(), String> {
-    if routed_to_lo() {
-        return Ok(());
-    }
-    let _ = Command::new("ip")
-        .args(["link", "set", "lo", "multicast", "on"])
-        .status();
-    let _ = Command::new("ip")
-        .args(["route", "add", "239.0.0.0/8", "dev", "lo"])
-        .status();
-    if routed_to_lo() {
-        return Ok(());
-    }
-    Err(
-        "239.0.0.0/8 is not routed to lo (as root: `ip link set lo multicast on && \
-         ip route add 239.0.0.0/8 dev lo`); the demo does not send multicast onto a real network"
-            .into(),
-    )
 }
 
 /// The `flexid-vdrive` next to this executable.
@@ -178,7 +148,8 @@ pub(super) fn print_truth(an: &Analysis, plant: &PlantFile) {
 /// `flexid demo`: over the bus when possible, else the in-process simulation.
 pub fn demo(a: &DemoArgs) -> Result<(), CliError> {
     let plant = PlantFile::load(a.plant.as_deref()).map_err(CliError::input)?;
-    let ready = sibling_vdrive().and_then(|bin| loopback_multicast().map(|()| bin));
+    let ready = sibling_vdrive()
+        .and_then(|bin| flexid_can::keep_multicast_on_loopback(GROUP).map(|()| bin));
     let bin = match ready {
         Ok(bin) => bin,
         Err(why) => {

@@ -6,9 +6,8 @@ use super::{CliError, ModelArgs};
 use crate::recording::{write_recording, DriveInfo};
 use crate::sweep::{admission_check, run_sweep, Pacing, Progress, SweepOutcome, SweepPlan};
 use clap::{Args, ValueEnum};
-use flexid_can::{CanBus, UdpConfig, UdpMulticastBus};
+use flexid_can::{CanBus, UdpMulticastBus};
 use flexid_canopen::{bring_up, MasterConfig, ProfileSet};
-use std::net::IpAddr;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
@@ -121,71 +120,7 @@ fn restore_signal_handlers() {
     }
 }
 
-/// Which bus `--bus` names.
-#[derive(Debug, Clone, PartialEq)]
-pub enum BusSpec {
-    /// User-space UDP multicast (python-can `udp_multicast` compatible).
-    Udp(UdpConfig),
-    /// A SocketCAN interface.
-    SocketCan(String),
-}
-
-impl BusSpec {
-    /// Parse `udp[:GROUP[:PORT]]`, `socketcan:IFACE`, or a bare SocketCAN interface name
-    /// (`vcan0`, `can1`).
-    pub fn parse(s: &str) -> Result<Self, String> {
-        if let Some(iface) = s.strip_prefix("socketcan:") {
-            if iface.is_empty() {
-                return Err("--bus socketcan:IFACE needs an interface".into());
-            }
-            return Ok(BusSpec::SocketCan(iface.into()));
-        }
-        let Some(rest) = s.strip_prefix("udp") else {
-            if !s.is_empty() && s.chars().all(|c| c.is_ascii_alphanumeric() || c == '_') {
-                return Ok(BusSpec::SocketCan(s.into()));
-            }
-            return Err(format!(
-                "--bus {s}: expected udp[:GROUP[:PORT]], vcan0 or socketcan:IFACE"
-            ));
-        };
-        if rest.is_empty() {
-            return Ok(BusSpec::Udp(UdpConfig::default()));
-        }
-        let bad = || format!("--bus {s}: expected udp[:GROUP[:PORT]] (IPv6: udp:[GROUP]:PORT)");
-        let rest = rest.strip_prefix(':').ok_or_else(bad)?;
-        let (group, port) = if let Some(r) = rest.strip_prefix('[') {
-            let (g, p) = r.split_once(']').ok_or_else(bad)?;
-            (g, p.strip_prefix(':'))
-        } else if rest.parse::<IpAddr>().is_ok() {
-            (rest, None)
-        } else {
-            match rest.rsplit_once(':') {
-                Some((g, p)) => (g, Some(p)),
-                None => (rest, None),
-            }
-        };
-        let group: IpAddr = group.parse().map_err(|_| bad())?;
-        if !group.is_multicast() {
-            return Err(format!("--bus {s}: {group} is not a multicast group"));
-        }
-        let mut cfg = UdpConfig::group(group);
-        if let Some(p) = port {
-            cfg.port = p.parse().map_err(|_| bad())?;
-        }
-        Ok(BusSpec::Udp(cfg))
-    }
-
-    /// How it is written in `--bus`.
-    pub fn describe(&self) -> String {
-        match self {
-            BusSpec::Udp(c) => match c.group {
-                IpAddr::V4(g) => format!("udp:{g}:{}", c.port),
-                IpAddr::V6(g) => format!("udp:[{g}]:{}", c.port),
-            },
-            BusSpec::SocketCan(i) => format!("socketcan:{i}"),
-        }
-    }
-}
+pub use flexid_can::BusSpec;
 
 fn pacing(c: ClockArg) -> Pacing {
     match c {

@@ -40,37 +40,19 @@ pub fn vdrive_bin() -> PathBuf {
     bin
 }
 
-fn routed_to_lo() -> bool {
-    Command::new("ip")
-        .args(["route", "get", "239.74.163.2"])
-        .output()
-        .is_ok_and(|o| {
-            o.status.success() && String::from_utf8_lossy(&o.stdout).contains(" dev lo ")
-        })
-}
-
-/// Keeps 239.0.0.0/8 on `lo` (set up when root, as flexid-can's tests do). False: skip
+/// Keeps 239.0.0.0/8 on `lo` ([`flexid_can::keep_multicast_on_loopback`]). False: skip
 /// (with a message); under `CI=true` a panic instead.
 pub fn loopback_multicast() -> bool {
-    if routed_to_lo() {
-        return true;
+    match flexid_can::keep_multicast_on_loopback(std::net::Ipv4Addr::new(239, 74, 163, 2)) {
+        Ok(()) => true,
+        Err(msg) if std::env::var("CI").is_ok_and(|v| v == "true") => {
+            panic!("loopback multicast required under CI=true: {msg}")
+        }
+        Err(msg) => {
+            eprintln!("skipped: {msg}");
+            false
+        }
     }
-    let _ = Command::new("ip")
-        .args(["link", "set", "lo", "multicast", "on"])
-        .status();
-    let _ = Command::new("ip")
-        .args(["route", "add", "239.0.0.0/8", "dev", "lo"])
-        .status();
-    if routed_to_lo() {
-        return true;
-    }
-    let msg = "239.0.0.0/8 is not routed to lo; as root run \
-               `ip link set lo multicast on && ip route add 239.0.0.0/8 dev lo`";
-    if std::env::var("CI").is_ok_and(|v| v == "true") {
-        panic!("loopback multicast required under CI=true: {msg}");
-    }
-    eprintln!("skipped: {msg}");
-    false
 }
 
 /// A running `flexid-vdrive`, killed on drop.

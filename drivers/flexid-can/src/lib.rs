@@ -15,9 +15,11 @@ pub mod bus;
 pub mod error;
 pub mod frame;
 pub mod inproc;
+pub mod loopback;
 pub mod pycan_wire;
 #[cfg(target_os = "linux")]
 pub mod socketcan;
+pub mod spec;
 pub mod timing;
 pub mod udp_multicast;
 
@@ -25,6 +27,8 @@ pub use bus::{BusStats, CanBus};
 pub use error::{BusError, ErrorClass, ErrorFrameInfo};
 pub use frame::{CanFrame, CanId, FrameError, FrameKind, Received};
 pub use inproc::InprocBus;
+pub use loopback::keep_multicast_on_loopback;
 #[cfg(target_os = "linux")]
 pub use socketcan::SocketCanBus;
+pub use spec::BusSpec;
 pub use udp_multicast::{UdpConfig, UdpMulticastBus};

@@ -15,7 +15,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use clap::{Parser, ValueEnum};
 use flexid_can::timing::Paced;
-use flexid_can::{CanBus, UdpConfig, UdpMulticastBus};
+use flexid_can::{BusSpec, CanBus, UdpMulticastBus};
 use flexid_vdrive::{plant_drive, ClockMode, DrivePlant, Runner};
 
 static STOP: AtomicBool = AtomicBool::new(false);
@@ -56,52 +56,6 @@ struct Cli {
     /// Seed of the plant's noise (nonlinear plant with [effects] only).
     #[arg(long, default_value_t = 1)]
     seed: u64,
-}
-
-enum BusSpec {
-    Udp(UdpConfig),
-    SocketCan(String),
-}
-
-fn parse_bus(s: &str) -> Result<BusSpec, String> {
-    if let Some(iface) = s.strip_prefix("socketcan:") {
-        if iface.is_empty() {
-            return Err("--bus socketcan:IFACE needs an interface".into());
-        }
-        return Ok(BusSpec::SocketCan(iface.to_string()));
-    }
-    let rest = match s.strip_prefix("udp") {
-        Some("") => return Ok(BusSpec::Udp(UdpConfig::default())),
-        Some(r) => r
-            .strip_prefix(':')
-            .ok_or_else(|| format!("--bus {s}: expected udp[:GROUP[:PORT]]"))?,
-        None => {
-            return Err(format!(
-                "--bus {s}: expected udp[:GROUP[:PORT]] or socketcan:IFACE"
-            ))
-        }
-    };
-    let bad = || format!("--bus {s}: expected udp[:GROUP[:PORT]] (IPv6: udp:[GROUP]:PORT)");
-    let (group, port) = if let Some(r) = rest.strip_prefix('[') {
-        let (g, p) = r.split_once(']').ok_or_else(bad)?;
-        (g, p.strip_prefix(':'))
-    } else if rest.parse::<IpAddr>().is_ok() {
-        (rest, None)
-    } else {
-        match rest.rsplit_once(':') {
-            Some((g, p)) => (g, Some(p)),
-            None => (rest, None),
-        }
-    };
-    let group: IpAddr = group.parse().map_err(|_| bad())?;
-    if !group.is_multicast() {
-        return Err(format!("--bus {s}: {group} is not a multicast group"));
-    }
-    let mut cfg = UdpConfig::group(group);
-    if let Some(p) = port {
-        cfg.port = p.parse().map_err(|_| bad())?;
-    }
-    Ok(BusSpec::Udp(cfg))
 }
 
 fn serve<B: CanBus>(bus: B, plant: &DrivePlant, clock: ClockMode, seed: u64) -> ExitCode {
@@ -161,7 +115,7 @@ fn main() -> ExitCode {
         }
         plant.drive.node_id = n;
     }
-    let spec = match parse_bus(&cli.bus) {
+    let spec = match BusSpec::parse(&cli.bus) {
         Ok(s) => s,
         Err(e) => {
             eprintln!("flexid-vdrive: {e}");
@@ -206,33 +160,5 @@ fn main() -> ExitCode {
             eprintln!("flexid-vdrive: SocketCAN is Linux only");
             ExitCode::from(2)
         }
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn bus_specs() {
-        assert!(matches!(parse_bus("udp"), Ok(BusSpec::Udp(c)) if c == UdpConfig::default()));
-        match parse_bus("udp:239.74.163.2:5000") {
-            Ok(BusSpec::Udp(c)) => {
-                assert_eq!((c.group.to_string(), c.port), ("239.74.163.2".into(), 5000))
-            }
-            _ => panic!(),
-        }
-        match parse_bus("udp:239.1.2.3") {
-            Ok(BusSpec::Udp(c)) => assert_eq!(c.port, 43113),
-            _ => panic!(),
-        }
-        match parse_bus("udp:[ff15::1]:7") {
-            Ok(BusSpec::Udp(c)) => assert_eq!(c.port, 7),
-            _ => panic!(),
-        }
-        assert!(matches!(parse_bus("socketcan:vcan0"), Ok(BusSpec::SocketCan(i)) if i == "vcan0"));
-        assert!(parse_bus("udp:10.0.0.1").is_err());
-        assert!(parse_bus("tcp").is_err());
-        assert!(parse_bus("udp:239.1.2.3:x").is_err());
     }
 }

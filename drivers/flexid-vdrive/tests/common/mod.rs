@@ -118,32 +118,16 @@ impl Dut {
     }
 }
 
-fn routed_to_lo() -> bool {
-    std::process::Command::new("ip")
-        .args(["route", "get", "239.74.163.2"])
-        .output()
-        .is_ok_and(|o| {
-            o.status.success() && String::from_utf8_lossy(&o.stdout).contains(" dev lo ")
-        })
-}
-
-/// As flexid-can's tests: keeps 239.0.0.0/8 on `lo` (sets it up when root); false (skip)
+/// Keeps 239.0.0.0/8 on `lo` ([`flexid_can::keep_multicast_on_loopback`]); false (skip)
 /// when the group would leave through another interface.
 pub fn loopback_multicast() -> bool {
-    if routed_to_lo() {
-        return true;
+    match flexid_can::keep_multicast_on_loopback(std::net::Ipv4Addr::new(239, 74, 163, 2)) {
+        Ok(()) => true,
+        Err(msg) => {
+            skip(&msg);
+            false
+        }
     }
-    let _ = std::process::Command::new("ip")
-        .args(["link", "set", "lo", "multicast", "on"])
-        .status();
-    let _ = std::process::Command::new("ip")
-        .args(["route", "add", "239.0.0.0/8", "dev", "lo"])
-        .status();
-    if routed_to_lo() {
-        return true;
-    }
-    skip("239.0.0.0/8 is not routed to lo (as root: `ip link set lo multicast on && ip route add 239.0.0.0/8 dev lo`)");
-    false
 }
 
 /// A test that cannot run here says why and passes, except in CI (`CI=true`), where the

@@ -36,7 +36,12 @@ pub enum ExcitationArg {
 pub struct SweepArgs {
     /// The bus: `udp[:GROUP[:PORT]]` (user-space UDP multicast), `vcan0` or
     /// `socketcan:IFACE` (not with `--daemon`: the daemon owns its buses).
-    #[arg(long, required_unless_present = "daemon", default_value = "")]
+    #[arg(
+        long,
+        required_unless_present = "daemon",
+        default_value = "",
+        hide_default_value = true
+    )]
     pub bus: String,
     /// The drive's CANopen node-id.
     #[arg(long, default_value_t = 5)]

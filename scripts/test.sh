@@ -31,6 +31,23 @@ else
     echo "mosquitto: missing and not root: the MQTT test skips (and fails under CI=true)"
 fi
 
+step "chromium and playwright-core for the browser test (tests/daemon_web.rs)"
+if [ -x /usr/bin/chromium ] && command -v npm >/dev/null 2>&1; then
+    echo "chromium, node: present"
+elif [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then
+    export DEBIAN_FRONTEND=noninteractive
+    pkgs="chromium"
+    command -v npm >/dev/null 2>&1 || pkgs="$pkgs nodejs npm"
+    # shellcheck disable=SC2086
+    apt-get install -y -q $pkgs || { apt-get update -q && apt-get install -y -q $pkgs; }
+else
+    echo "chromium/node: missing and not root: the browser test skips (and fails under CI=true)"
+fi
+if command -v npm >/dev/null 2>&1; then
+    # the version pinned in tests/browser/package-lock.json (one package, a few seconds)
+    (cd tests/browser && npm ci --no-audit --no-fund --prefer-offline --loglevel=error)
+fi
+
 step "build (release, once for every stage)"
 cargo build --release --workspace --all-targets
 

@@ -47,6 +47,7 @@ pub fn demo_sweep_args(plant: &PlantFile, bus: String, out: PathBuf) -> SweepArg
         profiles: None,
         out,
         masses: None,
+        daemon: Default::default(),
     }
 }
 

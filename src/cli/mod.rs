@@ -8,6 +8,7 @@
 //! * `flexid sweep --bus udp[:GROUP[:PORT]]|vcan0|socketcan:IFACE --node 5 ...` (see [`sweep::SweepArgs`])
 
 mod commands;
+pub mod daemon_client;
 mod demo;
 pub mod diagnose;
 mod excite;

@@ -34,8 +34,13 @@ pub enum ExcitationArg {
 #[derive(Debug, Args, Clone)]
 pub struct SweepArgs {
     /// The bus: `udp[:GROUP[:PORT]]` (user-space UDP multicast), `vcan0` or
-    /// `socketcan:IFACE`.
-    #[arg(long)]
+    /// `socketcan:IFACE` (not with `--daemon`: the daemon owns its buses).
+    #[arg(
+        long,
+        required_unless_present = "daemon",
+        default_value = "",
+        hide_default_value = true
+    )]
     pub bus: String,
     /// The drive's CANopen node-id.
     #[arg(long, default_value_t = 5)]
@@ -89,6 +94,9 @@ pub struct SweepArgs {
     /// Number of bodies of the chain (motor first); chosen automatically when absent.
     #[arg(long)]
     pub masses: Option<usize>,
+    /// Run through a daemon instead (`--daemon URL --token-file PATH [--axis NAME]`).
+    #[command(flatten)]
+    pub daemon: super::daemon_client::DaemonClientArgs,
 }
 
 /// Set by SIGINT/SIGTERM during a sweep.
@@ -424,5 +432,8 @@ pub fn identify_outcome(
 
 /// `flexid sweep`.
 pub fn sweep(a: &SweepArgs) -> Result<(), CliError> {
+    if let Some(url) = &a.daemon.daemon {
+        return super::daemon_client::sweep_via_daemon(a, url);
+    }
     sweep_run(a).map(|_| ())
 }

@@ -134,6 +134,7 @@ pub(crate) fn run(mut job: Job) {
                 write_bode(&job.files, &an, &id);
                 result = json!({
                     "model": an.model,
+                    "model_bode": an.model_frf.as_ref().map(model_bode_json),
                     "notes": an.notes,
                 });
                 if let (Some(m), Some(mqtt)) = (&an.model, &job.svc.mqtt) {
@@ -194,6 +195,16 @@ pub fn bode_json(frf: &Frf, period: usize) -> Value {
         "phase_deg": frf.phase_deg_unwrapped().into_iter().map(finite).collect::<Vec<_>>(),
         "coherence": frf.coherence,
         "relative_std": rel,
+    })
+}
+
+/// The identified model's response on the measured lines (`model_bode` of the `result`
+/// event): `{freq_hz[], magnitude_db[], phase_deg[]}`.
+pub fn model_bode_json(frf: &Frf) -> Value {
+    json!({
+        "freq_hz": frf.freq_hz,
+        "magnitude_db": frf.magnitude_db().into_iter().map(finite).collect::<Vec<_>>(),
+        "phase_deg": frf.phase_deg_unwrapped().into_iter().map(finite).collect::<Vec<_>>(),
     })
 }
 

@@ -120,7 +120,7 @@ pub async fn start(
         source,
     })?;
     let svc = Service::new(config, token, backend, store, mqtt);
-    let app = api::router(svc.clone());
+    let app = api::router(svc.clone()).merge(super::web::router());
     notify::ready(&format!("API on {addr}"));
     notify::spawn_watchdog(stop_rx.clone());
     tracing::info!("API listening on {addr}");

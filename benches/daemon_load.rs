@@ -1,5 +1,5 @@
 //! The daemon under load (`scripts/bench.sh` runs it; see the README's daemon section):
-//! the real `flexid daemon` (CANopen backend, real-time clock at 1 kHz) with one and then
+//! the real `flexid daemon` (CANopen backend, real-time clock, 1 kHz unless `--rate-hz`) with one and then
 //! two axes sweeping on real `flexid-vdrive`s (`--clock realtime`, each on its own UDP
 //! bus), against the same daemon idle in the same run.
 //!
@@ -13,7 +13,8 @@
 //!   Bode update on the SSE stream at this client (same clock, same host): p50, p99, max;
 //! * how each sweep ended and its cycle timing (late wake-ups, overruns, lost TPDOs).
 //!
-//! Printed and written to `target/bench/daemon_load.md`. Arguments: `[--quick] [--out FILE]`
+//! Printed and written to `target/bench/daemon_load.md`. Arguments: `[--quick]
+//! [--rate-hz HZ] [--out FILE]`
 //! (`--quick`: 3 s sweeps of 0.25 s periods instead of 10 s; other arguments, e.g. cargo's
 //! `--bench`, are ignored). Skips (exit 0, a message) when 239.0.0.0/8 is not on `lo`.
 
@@ -29,6 +30,9 @@ use flexid::rt::clock;
 use std::fmt::Write as _;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
+
+/// Default cycle rate [Hz] (`--rate-hz` changes it).
+const RATE_HZ: f64 = 1000.0;
 
 /// utime + stime of `pid` [ns].
 fn process_cpu_ns(pid: u32) -> u64 {
@@ -113,9 +117,16 @@ async fn main() {
     if !loopback_multicast() {
         return;
     }
+    let rate_hz: f64 = args
+        .iter()
+        .position(|a| a == "--rate-hz")
+        .and_then(|i| args.get(i + 1))
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(RATE_HZ);
     let (duration_s, periods) = if quick { (3.0, 11) } else { (10.0, 39) };
     let body = format!(
-        r#"{{"excitation":"multisine","band_hz":[4,300],"amplitude_nm":0.3,"periods":{periods},"duration_s":{duration_s}}}"#
+        r#"{{"excitation":"multisine","band_hz":[4,{hi}],"amplitude_nm":0.3,"periods":{periods},"duration_s":{duration_s}}}"#,
+        hi = (0.3 * rate_hz).round()
     );
     let ports = [43331u16, 43332];
     let _vds: Vec<VDrive> = ports
@@ -130,6 +141,7 @@ async fn main() {
         .map(|(n, p)| {
             let mut a = CanAxis::new(n, p);
             a.clock = "monotonic";
+            a.cycle_hz = rate_hz;
             a
         })
         .collect();
@@ -142,7 +154,7 @@ async fn main() {
     let mut report = String::new();
     let _ = writeln!(
         report,
-        "# Daemon load (CANopen backend, 1 kHz real time, flexid-vdrive --clock realtime)\n\n\
+        "# Daemon load (CANopen backend, {rate_hz} Hz real time, flexid-vdrive --clock realtime)\n\n\
          {duration_s} s sweeps of {periods}+1 periods; CPU = daemon process CPU time / wall time.\n"
     );
     // idle reference

@@ -17,6 +17,8 @@ pub struct CanAxis<'a> {
     pub position_window_rad: f64,
     /// `"simulated"` (lock-step, the default) or `"monotonic"` (real time).
     pub clock: &'a str,
+    /// Cycle rate [Hz] (1000 by default).
+    pub cycle_hz: f64,
 }
 
 impl<'a> CanAxis<'a> {
@@ -27,11 +29,12 @@ impl<'a> CanAxis<'a> {
             port,
             position_window_rad: 1000.0,
             clock: "simulated",
+            cycle_hz: 1000.0,
         }
     }
 }
 
-/// Write `flexid.toml` for the CANopen backend (1 kHz, 1 N m peak) with
+/// Write `flexid.toml` for the CANopen backend (1 N m peak) with
 /// `extra` appended; returns its path. The data directory is `dir/data`.
 pub fn canopen_config(dir: &Path, token: &Path, axes: &[CanAxis], extra: &str) -> PathBuf {
     let mut text = format!(
@@ -50,12 +53,13 @@ pub fn canopen_config(dir: &Path, token: &Path, axes: &[CanAxis], extra: &str) -
     }
     for a in axes {
         text.push_str(&format!(
-            "[[axis]]\nname = \"{name}\"\nbus = \"bus-{name}\"\nnode = 5\ncycle_hz = 1000\n\
+            "[[axis]]\nname = \"{name}\"\nbus = \"bus-{name}\"\nnode = 5\ncycle_hz = {hz}\n\
              clock = \"{clock}\"\nlimits = {{ peak_torque_nm = 1.0, max_speed_rad_s = 300.0, \
              position_window_rad = {w}, max_sweep_s = 120 }}\n",
             name = a.name,
             w = a.position_window_rad,
-            clock = a.clock
+            clock = a.clock,
+            hz = a.cycle_hz
         ));
     }
     text.push_str(extra);

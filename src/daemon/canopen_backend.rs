@@ -17,7 +17,6 @@ use super::backend::{
 use super::canopen_tap::Tap;
 use super::config::{AxisConfig, BusConfig, BusKind, ClockKind};
 use super::period_relay::{spawn_relay, PeriodRows, RelayPlan};
-use crate::excitation::ExcitationKind;
 use crate::frf::{FrfKind, PeriodicEstimator};
 use crate::recording::CycleTiming;
 use crate::rt::{clock, RtGranted, RtSetup};
@@ -80,7 +79,9 @@ impl CanopenBackend {
             ClockKind::Simulated => Pacing::Lockstep,
         };
         let info = plan.info.clone();
-        let periodic = info.kind == ExcitationKind::Multisine && info.period_samples > 0;
+        // every excitation the daemon plans repeats per period (multisine, chirp): the relay
+        // cuts the published rows into periods whatever the sweep loop's reporting step
+        let periodic = info.period_samples > 0;
         let estimator = if periodic {
             Some(
                 PeriodicEstimator::new(
@@ -99,11 +100,10 @@ impl CanopenBackend {
             None
         };
         let rows_total = plan.torque_nm.len();
-        let blocks = if periodic {
-            rows_total / info.period_samples + 1
-        } else {
-            (rows_total as f64 / plan.sample_rate_hz).ceil() as usize + 2
-        };
+        // progress calls: one per period (multisine) or per second (other excitations)
+        let blocks = rows_total / info.period_samples.max(1)
+            + (rows_total as f64 / plan.sample_rate_hz).ceil() as usize
+            + 2;
         let mut sp =
             crate::sweep::SweepPlan::new(plan.sample_rate_hz, plan.torque_nm, plan.info, pacing);
         sp.max_speed_rad_s = axis.limits.max_speed_rad_s;

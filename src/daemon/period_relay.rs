@@ -14,7 +14,9 @@ use std::thread::JoinHandle;
 use std::time::Duration;
 use tokio::sync::mpsc;
 
-/// Rows of a running sweep, written by the cycle thread and read by the relay.
+/// Rows of a running sweep, written by the cycle thread and read by the relay. Rows are
+/// published in blocks (whenever the sweep loop reports progress); the relay cuts them
+/// into excitation periods.
 #[derive(Debug)]
 pub struct PeriodRows {
     torque_nm: Box<[AtomicU64]>,
@@ -23,8 +25,9 @@ pub struct PeriodRows {
     published: AtomicUsize,
     /// Blocks (periods) published so far.
     blocks: AtomicUsize,
-    /// `CLOCK_MONOTONIC` at the end of each block [ns].
+    /// `CLOCK_MONOTONIC` at the end of each block [ns], and the rows it ended at.
     block_end_ns: Box<[AtomicU64]>,
+    block_rows: Box<[AtomicUsize]>,
     cycles: AtomicU64,
     late: AtomicU64,
     lost: AtomicU64,
@@ -44,6 +47,7 @@ impl PeriodRows {
             published: AtomicUsize::new(0),
             blocks: AtomicUsize::new(0),
             block_end_ns: atomics(blocks),
+            block_rows: (0..blocks).map(|_| AtomicUsize::new(0)).collect(),
             cycles: AtomicU64::new(0),
             late: AtomicU64::new(0),
             lost: AtomicU64::new(0),
@@ -63,8 +67,9 @@ impl PeriodRows {
     /// Make rows `..rows` readable: one more block, ended at `end_ns`.
     pub fn publish(&self, rows: usize, late: u64, lost: u64, end_ns: u64) {
         let b = self.blocks.load(Ordering::Relaxed);
-        if let Some(slot) = self.block_end_ns.get(b) {
-            slot.store(end_ns, Ordering::Relaxed);
+        if let (Some(t), Some(r)) = (self.block_end_ns.get(b), self.block_rows.get(b)) {
+            t.store(end_ns, Ordering::Relaxed);
+            r.store(rows, Ordering::Relaxed);
         }
         self.cycles.store(rows as u64, Ordering::Relaxed);
         self.late.store(late, Ordering::Relaxed);
@@ -115,6 +120,7 @@ pub fn spawn_relay(
         .spawn(move || {
             let mut sent = 0usize;
             let mut block = 0usize;
+            let mut blk = 0usize;
             let mut prev_pos = None;
             let mut vel = Vec::new();
             loop {
@@ -139,9 +145,17 @@ pub fn spawn_relay(
                             frf_so_far = est.estimate().ok().map(Arc::new);
                         }
                     }
+                    // the first block that published the period's last row ended it
+                    while rows
+                        .block_rows
+                        .get(blk)
+                        .is_some_and(|r| r.load(Ordering::Relaxed) < to)
+                    {
+                        blk += 1;
+                    }
                     let end_ns = rows
                         .block_end_ns
-                        .get(block)
+                        .get(blk)
                         .map_or(0, |a| a.load(Ordering::Relaxed));
                     let ev = SweepEvent::Period {
                         index: block,
@@ -219,5 +233,47 @@ mod tests {
             n += 1;
         }
         assert_eq!(n, 4);
+    }
+
+    /// Blocks published at another step than the period (a chirp reports every second):
+    /// whole periods still arrive, each stamped with the block that completed it.
+    #[test]
+    fn cuts_unaligned_blocks_into_periods() {
+        let (period, step) = (200, 300);
+        let rows = Arc::new(PeriodRows::new(6 * step, 10));
+        let (tx, mut rx) = mpsc::channel(16);
+        let plan = RelayPlan {
+            period_samples: period,
+            sample_rate_hz: 1000.0,
+            estimator: None,
+        };
+        let h = spawn_relay("t-relay2", rows.clone(), plan, tx).unwrap();
+        for k in 0..6 * step {
+            rows.write(k, k as f64, 0.0);
+            if (k + 1) % step == 0 {
+                rows.publish(k + 1, 0, 0, (k + 1) as u64);
+                h.thread().unpark();
+            }
+        }
+        rows.finish();
+        h.thread().unpark();
+        h.join().unwrap();
+        let mut n = 0;
+        while let Ok(SweepEvent::Period {
+            index,
+            samples,
+            counters,
+            ..
+        }) = rx.try_recv()
+        {
+            assert_eq!(index, n);
+            assert_eq!(samples.first_sample, n * period);
+            assert_eq!(samples.torque_cmd_nm.len(), period);
+            let end = (n + 1) * period;
+            let stamped = end.div_ceil(step) * step;
+            assert_eq!(counters.period_end_mono_ns, stamped as u64, "period {n}");
+            n += 1;
+        }
+        assert_eq!(n, 6 * step / period);
     }
 }

@@ -197,11 +197,6 @@ impl Job {
         let drive = bring_up(bus, cfg, &self.profiles).map_err(|e| format!("bring-up: {e}"))?;
         let mut drive = drive.enable().map_err(|e| format!("enable: {e}"))?;
         let realtime = self.plan.pacing == Pacing::Realtime;
-        let granted = if realtime {
-            RtSetup::realtime(CYCLE_FIFO_PRIORITY).apply()
-        } else {
-            RtGranted::default()
-        };
         let relay = match self.relay.take().map(|plan| {
             spawn_relay(
                 &format!("relay-{}", self.axis.name),
@@ -219,6 +214,12 @@ impl Job {
                 None
             }
             None => None,
+        };
+        // after the relay is spawned: it must not inherit the cycle thread's SCHED_FIFO
+        let granted = if realtime {
+            RtSetup::realtime(CYCLE_FIFO_PRIORITY).apply()
+        } else {
+            RtGranted::default()
         };
         let rows = self.rows.clone();
         let relay_thread = relay.as_ref().map(|h| h.thread().clone());

@@ -77,6 +77,10 @@ pub struct Counters {
     pub late: u64,
     /// Cycles without feedback.
     pub lost: u64,
+    /// When the period ended on the cycle thread: `CLOCK_MONOTONIC` [ns]
+    /// ([`crate::rt::clock::now_ns`], comparable across processes on the host), for the
+    /// latency from a period's end to its Bode update on the event stream.
+    pub period_end_mono_ns: u64,
 }
 
 /// How a sweep ended.

@@ -20,11 +20,13 @@
 pub mod api;
 pub mod backend;
 pub mod canopen_backend;
+mod canopen_tap;
 pub mod config;
 pub mod hub;
 pub mod logging;
 pub mod mqtt;
 pub mod notify;
+pub mod period_relay;
 pub mod request;
 pub mod runner;
 pub mod server;

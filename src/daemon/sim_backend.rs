@@ -218,6 +218,7 @@ impl Run {
                         std::thread::sleep(due - now);
                     }
                 }
+                counters.period_end_mono_ns = crate::rt::clock::now_ns();
                 if !self.report(
                     block_start,
                     k,
@@ -250,6 +251,7 @@ impl Run {
                 ..Default::default()
             }),
             drive: None,
+            cycle_timing: None,
         };
         let recording = Recording {
             time_s: rec_t,

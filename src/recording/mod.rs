@@ -30,7 +30,9 @@ pub use read::{
     parse_recording, parse_sidecar, read_recording, read_recording_from, read_recording_report,
     sidecar_path, ReadReport, COLUMNS, TIME_STEP_TOLERANCE,
 };
-pub use types::{CycleCounters, DriveInfo, MotionSignal, Recording, RecordingEnd, Sidecar};
+pub use types::{
+    CycleCounters, CycleTiming, DriveInfo, MotionSignal, Recording, RecordingEnd, Sidecar,
+};
 pub use write::write_recording;
 
 #[cfg(test)]

@@ -33,6 +33,10 @@ pub struct Sidecar {
     /// Counters of the cyclic exchange (late/lost feedback, clamped set-points).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub cycle_counters: Option<CycleCounters>,
+    /// Timing of the cycle thread (wake-up lateness, late wake-ups, overruns, real-time
+    /// rights), written by the daemon's drive backend.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cycle_timing: Option<CycleTiming>,
 }
 
 /// How a measurement ended (the sidecar's `end` object).
@@ -112,6 +116,34 @@ pub struct CycleCounters {
     /// from that cycle instead of sending the missed SYNCs back to back.
     #[serde(default)]
     pub overruns: u64,
+}
+
+/// Timing of the cycle thread over a measurement (the sidecar's `cycle_timing`).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct CycleTiming {
+    /// `"realtime"` (absolute deadlines) or `"lockstep"` (as fast as the drive answers;
+    /// no lateness is measured).
+    pub pacing: String,
+    /// Cycle rate [Hz].
+    pub rate_hz: f64,
+    /// Wake-up lateness after the deadline waited for, ns (real-time pacing only).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lateness: Option<crate::rt::LatencySummary>,
+    /// A wake-up later than this (10 % of the period), ns, counts as late.
+    #[serde(default)]
+    pub late_threshold_ns: u64,
+    /// Wake-ups later than `late_threshold_ns`.
+    #[serde(default)]
+    pub late_wakeups: u64,
+    /// Cycles started more than half a period behind the schedule (it then restarts).
+    #[serde(default)]
+    pub overruns: u64,
+    /// `SCHED_FIFO` priority in effect, if granted.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fifo_priority: Option<u8>,
+    /// Whether the process memory was locked (`mlockall`).
+    #[serde(default)]
+    pub memory_locked: bool,
 }
 
 /// Which motion signal a recording's response columns hold.

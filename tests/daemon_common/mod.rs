@@ -2,6 +2,9 @@
 //! a backend that counts its calls, an HTTP client and an SSE reader.
 #![allow(dead_code)]
 
+pub mod broker;
+pub mod process;
+
 use flexid::daemon::{
     AxisBackend, AxisConfig, BackendError, Config, SimBackend, SweepHandle, SweepPlan,
 };
@@ -164,7 +167,12 @@ pub fn body(excitation: &str, periods: usize, duration_s: f64) -> String {
 
 /// Start a sweep; returns its id (asserts 202).
 pub async fn start_sweep(d: &TestDaemon, axis: &str, body: &str) -> String {
-    let r = auth(client().post(d.url(&format!("/api/v1/axes/{axis}/sweeps"))))
+    start_sweep_at(&d.url(""), axis, body).await
+}
+
+/// [`start_sweep`] against a daemon at `base` (`http://ADDR`).
+pub async fn start_sweep_at(base: &str, axis: &str, body: &str) -> String {
+    let r = auth(client().post(format!("{base}/api/v1/axes/{axis}/sweeps")))
         .header("content-type", "application/json")
         .body(body.to_string())
         .send()

@@ -63,10 +63,13 @@ pub struct VDrive {
 impl VDrive {
     /// Starts it on `bus` with `plant` in lock-step and waits for its ready line.
     pub fn start(bus: &str, plant: &Path) -> VDrive {
+        Self::start_clocked(bus, plant, "lockstep")
+    }
+
+    /// [`VDrive::start`] with `--clock CLOCK` (`lockstep` or `realtime`).
+    pub fn start_clocked(bus: &str, plant: &Path, clock: &str) -> VDrive {
         let mut child = Command::new(vdrive_bin())
-            .args([
-                "--bus", bus, "--node", "5", "--clock", "lockstep", "--plant",
-            ])
+            .args(["--bus", bus, "--node", "5", "--clock", clock, "--plant"])
             .arg(plant)
             .stdout(Stdio::piped())
             .stderr(Stdio::inherit())

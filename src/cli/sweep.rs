@@ -4,7 +4,10 @@
 use super::excite::{generate, ExciteArgs, ExciteKind, MultisineArgs};
 use super::{CliError, ModelArgs};
 use crate::recording::{write_recording, DriveInfo};
-use crate::sweep::{admission_check, run_sweep, Pacing, Progress, SweepOutcome, SweepPlan};
+use crate::sweep::{
+    admission_check, realtime_setup, run_sweep, run_sweep_on_cycle_thread, Pacing, Progress,
+    SweepOutcome, SweepPlan,
+};
 use clap::{Args, ValueEnum};
 use flexid_can::{CanBus, UdpMulticastBus};
 use flexid_canopen::{bring_up, MasterConfig, ProfileSet};
@@ -293,7 +296,20 @@ fn measure<B: CanBus>(
     let mut drive = drive
         .enable()
         .map_err(|e| CliError::failed(format!("enable failed: {e}")))?;
-    let outcome = run_sweep(&mut drive, plan, &STOP, &mut progress_line);
+    let outcome = match plan.pacing {
+        // absolute deadlines on a cycle thread of its own, SCHED_FIFO when permitted
+        Pacing::Realtime => {
+            run_sweep_on_cycle_thread(
+                &mut drive,
+                plan,
+                &STOP,
+                &mut progress_line,
+                realtime_setup(),
+            )
+            .0
+        }
+        Pacing::Lockstep => run_sweep(&mut drive, plan, &STOP, &mut progress_line),
+    };
     if let Some(e) = &outcome.ramp_error {
         eprintln!("flexid sweep: ramp to zero torque interrupted: {e}");
     }

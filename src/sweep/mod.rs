@@ -19,7 +19,9 @@ mod run;
 mod simulated;
 
 pub use plan::{admission_check, default_heartbeats, Pacing, SweepPlan};
-pub use run::{run_sweep, Progress, StopReason, SweepOutcome};
+pub use run::{
+    realtime_setup, run_sweep, run_sweep_on_cycle_thread, Progress, StopReason, SweepOutcome,
+};
 pub use simulated::{SimulatedDrive, SimulatedFault};
 
 pub use crate::recording::RecordingEnd;

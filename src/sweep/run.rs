@@ -4,6 +4,8 @@ use super::plan::{Pacing, SweepPlan};
 use super::simulated::SimulatedFault;
 use crate::excitation::ExcitationKind;
 use crate::recording::{CycleCounters, Recording, RecordingEnd, Sidecar};
+use crate::rt::clock::{self, InstantMap, MonoNs};
+use crate::rt::{RtGranted, RtSetup};
 use flexid_canopen::{Counters, CyclicDrive, MasterError};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
@@ -142,11 +144,91 @@ impl SweepOutcome {
     }
 }
 
-fn sleep_until(deadline: Instant) {
-    let now = Instant::now();
-    if deadline > now {
-        std::thread::sleep(deadline - now);
+/// The real-time schedule on the monotonic clock: absolute deadlines
+/// ([`clock::sleep_until_ns`], `clock_nanosleep` with `TIMER_ABSTIME` on Linux), so a late
+/// wake-up does not shift the following cycles. Cycle k's slot starts at `slot_ns` and its
+/// feedback is due one period later. A master that falls more than half a period behind
+/// (preempted, a loaded host) restarts the schedule from now, counted as an overrun:
+/// firing the missed slots back to back would give the drive SYNCs closer than a period
+/// and each cycle no time to answer.
+struct Schedule {
+    map: InstantMap,
+    period_ns: u64,
+    slot_ns: MonoNs,
+    overruns: u64,
+}
+
+impl Schedule {
+    fn new(period: Duration) -> Self {
+        Self {
+            map: InstantMap::calibrate(),
+            period_ns: (period.as_nanos() as u64).max(1),
+            slot_ns: clock::now_ns(),
+            overruns: 0,
+        }
     }
+
+    /// The deadline of the cycle starting now (the end of its slot).
+    #[inline]
+    fn next_deadline(&mut self) -> Instant {
+        let now = clock::now_ns();
+        if now > self.slot_ns + self.period_ns / 2 {
+            self.slot_ns = now;
+            self.overruns += 1;
+        }
+        self.slot_ns += self.period_ns;
+        self.map.instant(self.slot_ns)
+    }
+
+    /// Sleeps until the end of the current slot (absolute).
+    #[inline]
+    fn wait(&self) {
+        clock::sleep_until_ns(self.slot_ns);
+    }
+}
+
+/// The scheduling asked for a real-time sweep's cycle thread: `SCHED_FIFO` 80. Memory is
+/// not locked (the loop does not allocate; the process goes on to the analysis after it).
+pub fn realtime_setup() -> RtSetup {
+    RtSetup {
+        fifo_priority: Some(80),
+        lock_memory: false,
+        cpu: None,
+    }
+}
+
+/// Runs [`run_sweep`] on a cycle thread of its own (joined before returning) with `setup`
+/// applied when the OS permits; one line on stderr says what was granted, or what was
+/// refused and what that means for the cycle. The calling thread's scheduling is left
+/// alone (the analysis that follows runs at normal priority). Returns the outcome and
+/// what was granted.
+pub fn run_sweep_on_cycle_thread<D: CyclicDrive + Send>(
+    drive: &mut D,
+    plan: &SweepPlan,
+    stop: &AtomicBool,
+    progress: &mut (dyn FnMut(&Progress) + Send),
+    setup: RtSetup,
+) -> (SweepOutcome, RtGranted) {
+    std::thread::scope(|s| {
+        let h = s.spawn(move || {
+            let granted = setup.apply();
+            match (setup.fifo_priority, granted.fifo_priority) {
+                (_, Some(p)) => {
+                    eprintln!(
+                        "flexid sweep: real-time cycle thread: SCHED_FIFO priority {p} granted"
+                    )
+                }
+                (Some(_), None) => eprintln!(
+                    "flexid sweep: real-time cycle thread at normal priority: {}; feedback \
+                     may be late at kHz rates on a loaded machine",
+                    granted.refused.join("; ")
+                ),
+                (None, None) => {}
+            }
+            (run_sweep(drive, plan, stop, progress), granted)
+        });
+        h.join().unwrap_or_else(|p| std::panic::resume_unwind(p))
+    })
 }
 
 /// Runs `plan` on an enabled `drive`: one cycle per planned set-point, every one recorded
@@ -184,12 +266,7 @@ pub fn run_sweep<D: CyclicDrive>(
     let mut reason = StopReason::Complete;
     let mut stop_cycle = n as u64;
     let mut last_torque = 0.0;
-    // Real-time schedule: cycle k's slot starts at `slot` and its feedback is due one
-    // period later. A master that falls more than half a period behind (preempted, a
-    // loaded host) restarts the schedule from now: firing the missed slots back to back
-    // would give the drive SYNCs closer than a period and this cycle no time to answer.
-    let mut slot = t0;
-    let mut overruns = 0u64;
+    let mut schedule = Schedule::new(period);
 
     for k in 0..n {
         if stop.load(Ordering::Relaxed) {
@@ -206,14 +283,7 @@ pub fn run_sweep<D: CyclicDrive>(
             }
         }
         let deadline = match plan.pacing {
-            Pacing::Realtime => {
-                if now > slot + period / 2 {
-                    slot = now;
-                    overruns += 1;
-                }
-                slot += period;
-                slot
-            }
+            Pacing::Realtime => schedule.next_deadline(),
             Pacing::Lockstep => now + plan.feedback_timeout,
         };
         let fb = match drive.cycle(plan.torque_nm[k], deadline) {
@@ -261,24 +331,21 @@ pub fn run_sweep<D: CyclicDrive>(
             });
         }
         if plan.pacing == Pacing::Realtime {
-            sleep_until(deadline);
+            schedule.wait();
         }
     }
     let elapsed = t0.elapsed();
+    let overruns = schedule.overruns;
 
     // Ramp the torque to zero (not recorded) unless the drive is gone or faulted.
     let mut ramp_cycles = 0;
     let mut ramp_error = None;
     if !reason.drive_failed() {
         let steps = plan.ramp_cycles.max(1);
-        let mut next = Instant::now();
         for i in 1..=steps {
             let t = last_torque * (1.0 - i as f64 / steps as f64);
             let deadline = match plan.pacing {
-                Pacing::Realtime => {
-                    next += period;
-                    next
-                }
+                Pacing::Realtime => schedule.next_deadline(),
                 Pacing::Lockstep => Instant::now() + plan.feedback_timeout,
             };
             match drive.cycle(t, deadline) {
@@ -289,7 +356,7 @@ pub fn run_sweep<D: CyclicDrive>(
                 }
             }
             if plan.pacing == Pacing::Realtime {
-                sleep_until(deadline);
+                schedule.wait();
             }
         }
     }

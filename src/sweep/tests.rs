@@ -310,3 +310,75 @@ fn realtime_schedule_restarts_after_a_stall_instead_of_bursting() {
         "cycles without time for their feedback: {starved:?}"
     );
 }
+
+/// Records each cycle's deadline and thread.
+struct DeadlineDrive {
+    inner: SimulatedDrive,
+    deadlines: Vec<std::time::Instant>,
+    thread: Option<std::thread::ThreadId>,
+}
+
+impl flexid_canopen::CyclicDrive for DeadlineDrive {
+    type Error = SimulatedFault;
+    fn cycle(
+        &mut self,
+        torque_nm: f64,
+        deadline: std::time::Instant,
+    ) -> Result<flexid_canopen::Feedback, SimulatedFault> {
+        self.deadlines.push(deadline);
+        self.thread = Some(std::thread::current().id());
+        self.inner.cycle(torque_nm, deadline)
+    }
+    fn cycle_period(&self) -> std::time::Duration {
+        self.inner.cycle_period()
+    }
+    fn rated_torque_nm(&self) -> f64 {
+        self.inner.rated_torque_nm()
+    }
+    fn counters(&self) -> flexid_canopen::Counters {
+        self.inner.counters()
+    }
+}
+
+#[test]
+fn realtime_sweep_runs_on_a_cycle_thread_on_absolute_deadlines() {
+    // 500 Hz: every deadline is exactly one period after the previous one (absolute
+    // schedule on the monotonic clock), except where an overrun restarted the schedule;
+    // the loop runs on its own thread, and the caller's scheduling is untouched.
+    let mut a = args(&[
+        "--periods",
+        "1",
+        "--resolution-hz",
+        "10",
+        "--band",
+        "10",
+        "50",
+    ]);
+    a.cycle_hz = 500.0;
+    let mut p = plan(&a).unwrap();
+    p.pacing = Pacing::Realtime;
+    let period = p.period();
+    let mut drive = DeadlineDrive {
+        inner: SimulatedDrive::new(&e2e_chain(), 500.0).unwrap(),
+        deadlines: Vec::new(),
+        thread: None,
+    };
+    let t0 = std::time::Instant::now();
+    let (out, granted) = run_sweep_on_cycle_thread(
+        &mut drive,
+        &p,
+        &AtomicBool::new(false),
+        &mut quiet,
+        crate::rt::RtSetup::none(),
+    );
+    assert!(out.complete(), "{}", out.end.reason);
+    assert_eq!(granted, crate::rt::RtGranted::default());
+    assert_ne!(drive.thread, Some(std::thread::current().id()));
+    let n = out.recording.len();
+    assert!(n >= 100, "{n}");
+    let d = &drive.deadlines[..n];
+    let off_grid = d.windows(2).filter(|w| w[1] - w[0] != period).count() as u64;
+    assert_eq!(off_grid, out.overruns, "deadlines off the grid vs overruns");
+    // and the schedule kept time: the last deadline is where the grid puts it
+    assert!(d[n - 1] >= t0 + period * n as u32);
+}

@@ -1,6 +1,6 @@
 //! The one interface every bus implements: blocking, for a real-time thread.
 
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use crate::error::BusError;
 use crate::frame::{CanFrame, Received};
@@ -23,6 +23,16 @@ pub trait CanBus: Send {
     /// Queues one frame for transmission. Blocks at most as long as the OS (or the bit
     /// timing emulation) makes it.
     fn send(&mut self, frame: &CanFrame) -> Result<(), BusError>;
+
+    /// Queues one frame that the bit-timing emulation ([`crate::timing::Paced`]) says is
+    /// due at its receivers at `due` (the end of its transmission on the emulated wire).
+    /// A bus that can carry the due time to the receivers stamps the frame with it (its
+    /// [`Received::timestamp`], in-process bus); the default waits until `due`
+    /// ([`crate::timing::wait_until`]), then sends.
+    fn send_due(&mut self, frame: &CanFrame, due: Instant) -> Result<(), BusError> {
+        crate::timing::wait_until(due);
+        self.send(frame)
+    }
 
     /// Waits up to `timeout` for the next frame from another node. `Ok(None)` when the
     /// time ran out. A zero timeout polls.

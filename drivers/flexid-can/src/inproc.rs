@@ -105,12 +105,13 @@ impl Drop for InprocBus {
     }
 }
 
-impl CanBus for InprocBus {
-    fn send(&mut self, frame: &CanFrame) -> Result<(), BusError> {
+impl InprocBus {
+    /// Puts `frame`, received at `timestamp`, into every other handle's queue.
+    fn push(&mut self, frame: &CanFrame, timestamp: Instant) {
         let ports = lock(&self.medium.ports);
         let received = Received {
             frame: *frame,
-            timestamp: Instant::now(),
+            timestamp,
         };
         for port in ports.iter().filter(|p| p.id != self.port.id) {
             let mut q = lock(&port.queue);
@@ -123,6 +124,19 @@ impl CanBus for InprocBus {
             port.ready.notify_one();
         }
         self.stats.sent += 1;
+    }
+}
+
+impl CanBus for InprocBus {
+    fn send(&mut self, frame: &CanFrame) -> Result<(), BusError> {
+        self.push(frame, Instant::now());
+        Ok(())
+    }
+
+    /// Stamps the frame with `due` at once (no wait): [`crate::timing::Paced`] receivers
+    /// deliver it no earlier.
+    fn send_due(&mut self, frame: &CanFrame, due: Instant) -> Result<(), BusError> {
+        self.push(frame, due);
         Ok(())
     }
 

@@ -1,6 +1,14 @@
 //! CAN bit timing: worst-case frame lengths, bus load, and [`Paced`], a wrapper that
 //! makes a virtual bus take as long as a real one.
 //!
+//! - [`frame_bits`], [`bus_load`]: pure admission arithmetic (this file).
+//! - [`WireClock`] / [`BusClock`] (`wire.rs`): when the emulated medium is free; each
+//!   frame gets a start and a due (end-of-transmission) time.
+//! - [`Paced`] (`paced.rs`): a [`CanBus`](crate::CanBus) wrapper that stamps frames with
+//!   their due time instead of sleeping per frame, and delivers them no earlier.
+//! - [`wait_until`] (`wait.rs`): the receiver's wait for a due time (short waits spun,
+//!   long ones slept).
+//!
 //! # Frame length
 //!
 //! A classic CAN data frame with `n` data bytes consists of
@@ -32,12 +40,15 @@
 //! 0 bytes): the figures of that paper. Remote frames have no data field (`n = 0`,
 //! whatever their DLC).
 
-use std::sync::{Arc, Mutex, PoisonError};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
-use crate::bus::{BusStats, CanBus};
-use crate::error::BusError;
-use crate::frame::{CanFrame, Received};
+mod paced;
+mod wait;
+mod wire;
+
+pub use paced::Paced;
+pub use wait::{wait_until, SPIN_BELOW};
+pub use wire::{BusClock, Slot, WireClock};
 
 /// Interframe space, in bits (counted in [`frame_bits`]).
 pub const IFS_BITS: u32 = 3;
@@ -52,7 +63,13 @@ pub const fn frame_bits(data_len: u8, extended: bool) -> u32 {
 
 /// Time on the bus of `bits` at `bitrate` (bits/s).
 pub fn bits_duration(bits: u32, bitrate: u32) -> Duration {
-    Duration::from_nanos(bits as u64 * 1_000_000_000 / bitrate.max(1) as u64)
+    Duration::from_nanos(bits_ns(bits, bitrate))
+}
+
+/// Time on the bus of `bits` at `bitrate` (bits/s), in ns (truncated).
+pub const fn bits_ns(bits: u32, bitrate: u32) -> u64 {
+    let rate = if bitrate == 0 { 1 } else { bitrate };
+    bits as u64 * 1_000_000_000 / rate as u64
 }
 
 /// The shape of a frame for load calculations.
@@ -84,120 +101,6 @@ pub fn bus_load(frames_per_cycle: &[FrameShape], cycle_rate_hz: f64, bitrate: u3
         .map(|f| frame_bits(f.data_len, f.extended) as u64)
         .sum();
     bits as f64 * cycle_rate_hz / bitrate as f64
-}
-
-/// When the emulated bus is next free. Shared by all [`Paced`] handles given the same
-/// clock (and by their [`CanBus::try_clone`]s).
-#[derive(Debug, Clone)]
-pub struct BusClock(Arc<Mutex<Instant>>);
-
-impl Default for BusClock {
-    fn default() -> Self {
-        Self::new()
-    }
-}
-
-impl BusClock {
-    /// A bus that is free now.
-    pub fn new() -> Self {
-        Self(Arc::new(Mutex::new(Instant::now())))
-    }
-
-    /// Reserves the bus for `d` from the later of now and the end of the previous frame;
-    /// returns when the frame has left the bus.
-    pub fn reserve(&self, d: Duration) -> Instant {
-        let mut busy_until = self.0.lock().unwrap_or_else(PoisonError::into_inner);
-        let end = (*busy_until).max(Instant::now()) + d;
-        *busy_until = end;
-        end
-    }
-}
-
-/// Bit-timing emulation over a virtual bus: `send` blocks until the frame would have left
-/// a real bus of the given bitrate, counting [`frame_bits`] from when the bus became free.
-///
-/// - In-process bus: give every handle the same [`BusClock`] (or make further handles
-///   with [`CanBus::try_clone`], which shares it): frames from all senders then queue for
-///   one medium, so an over-full cycle takes visibly longer than the cycle. Senders are
-///   served in the order they call `send`, not by identifier priority (no arbitration).
-/// - UDP multicast: processes share no clock, so each handle paces only its own frames
-///   (per-sender pacing). Several senders together can exceed the bitrate unnoticed;
-///   an admission check with [`bus_load`] over all nodes' frames covers that.
-///
-/// Frames are delivered when their time on the bus has passed (the sender sleeps, then
-/// sends), and the receive side is untouched.
-#[derive(Debug)]
-pub struct Paced<B> {
-    inner: B,
-    bitrate: u32,
-    clock: BusClock,
-}
-
-impl<B: CanBus> Paced<B> {
-    /// Paces `inner` at `bitrate` (bits/s) on a clock of its own.
-    pub fn new(inner: B, bitrate: u32) -> Self {
-        Self::with_clock(inner, bitrate, BusClock::new())
-    }
-
-    /// Paces `inner` at `bitrate` (bits/s) on a shared clock.
-    pub fn with_clock(inner: B, bitrate: u32, clock: BusClock) -> Self {
-        Self {
-            inner,
-            bitrate: bitrate.max(1),
-            clock,
-        }
-    }
-
-    /// The bus clock (to share with further handles).
-    pub fn clock(&self) -> &BusClock {
-        &self.clock
-    }
-
-    /// The emulated bitrate, in bits/s.
-    pub fn bitrate(&self) -> u32 {
-        self.bitrate
-    }
-
-    /// The wrapped bus.
-    pub fn inner(&self) -> &B {
-        &self.inner
-    }
-
-    /// Time `frame` occupies the bus (worst-case stuffing, interframe space included).
-    pub fn frame_time(&self, frame: &CanFrame) -> Duration {
-        bits_duration(frame.wire_bits(), self.bitrate)
-    }
-}
-
-impl<B: CanBus> CanBus for Paced<B> {
-    fn send(&mut self, frame: &CanFrame) -> Result<(), BusError> {
-        let done = self.clock.reserve(self.frame_time(frame));
-        let now = Instant::now();
-        if done > now {
-            std::thread::sleep(done - now);
-        }
-        self.inner.send(frame)
-    }
-
-    fn recv_timeout(&mut self, timeout: Duration) -> Result<Option<Received>, BusError> {
-        self.inner.recv_timeout(timeout)
-    }
-
-    fn try_clone(&self) -> Result<Self, BusError> {
-        Ok(Self::with_clock(
-            self.inner.try_clone()?,
-            self.bitrate,
-            self.clock.clone(),
-        ))
-    }
-
-    fn interface(&self) -> &str {
-        self.inner.interface()
-    }
-
-    fn stats(&self) -> BusStats {
-        self.inner.stats()
-    }
 }
 
 #[cfg(test)]

@@ -276,6 +276,151 @@ impl<'a> ChainProblem<'a> {
     }
 }
 
+/// Scratch of the line pass, sized once per fit ([`ChainProblem::scratch`]): nothing is
+/// allocated per evaluation.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct LineScratch {
+    e: Vec<Complex64>,
+    g: Vec<Complex64>,
+    dpd: Vec<Complex64>,
+    /// Real and imaginary parts of one Jacobian row pair (weighted), per parameter.
+    jr: Vec<f64>,
+    ji: Vec<f64>,
+}
+
+impl FitData {
+    /// Every `stride`-th line (from the first): the coarse problem of the multi-start fit.
+    pub(crate) fn decimated(&self, stride: usize) -> FitData {
+        let stride = stride.max(1);
+        let pick = |v: &Vec<Complex64>| v.iter().step_by(stride).copied().collect();
+        FitData {
+            fs_hz: self.fs_hz,
+            ts: self.ts,
+            masses: self.masses,
+            z: pick(&self.z),
+            zm1: pick(&self.zm1),
+            k: pick(&self.k),
+            gamma: pick(&self.gamma),
+            w: self.w.iter().step_by(stride).copied().collect(),
+        }
+    }
+}
+
+impl<'a> ChainProblem<'a> {
+    /// A problem on `data` with no parameters set yet (invalid until [`Self::set_theta`]).
+    pub(crate) fn unset(data: &'a FitData) -> Self {
+        ChainProblem {
+            data,
+            theta: DVector::zeros(0),
+            state: ModelState::default(),
+        }
+    }
+
+    /// Scratch buffers for [`Self::normal_equations`].
+    pub(crate) fn scratch(&self) -> LineScratch {
+        let np = self.data.params();
+        let ns = self.data.masses.saturating_sub(1);
+        let zero = Complex64::new(0.0, 0.0);
+        LineScratch {
+            e: vec![zero; ns],
+            g: vec![zero; ns],
+            dpd: vec![zero; np],
+            jr: vec![0.0; np],
+            ji: vec![0.0; np],
+        }
+    }
+
+    /// Move to the log-parameters `theta` (same length as before), without allocating the
+    /// parameter vector.
+    pub(crate) fn set_theta(&mut self, theta: &[f64]) {
+        if self.theta.len() == theta.len() {
+            self.theta.as_mut_slice().copy_from_slice(theta);
+        } else {
+            self.theta = DVector::from_column_slice(theta);
+        }
+        self.update();
+    }
+
+    /// Weighted complex log-ratio `w ln(H_model/H_meas)` on line `i` (fills the scratch's
+    /// section terms).
+    #[inline]
+    fn weighted_log_ratio(&self, i: usize, s: &mut LineScratch) -> (Complex64, Complex64) {
+        let pz = self.position(i, &mut s.e, &mut s.g);
+        let v = pz * self.data.k[i];
+        let w = self.data.w[i];
+        (
+            pz,
+            Complex64::new(w * 0.5 * v.norm_sqr().ln(), w * v.im.atan2(v.re)),
+        )
+    }
+
+    /// The cost `sum r^2` together with the normal equations `J^T J` (`jtj`, `P x P`
+    /// row-major, both triangles) and `J^T r` (`jtr`), accumulated line by line while the
+    /// residuals and the analytic Jacobian rows are computed: the `2 lines x P` Jacobian is
+    /// never formed. `None` where the model is invalid or anything is not finite.
+    pub(crate) fn normal_equations(
+        &self,
+        s: &mut LineScratch,
+        jtj: &mut [f64],
+        jtr: &mut [f64],
+    ) -> Option<f64> {
+        if !self.state.ok {
+            return None;
+        }
+        let d = self.data;
+        let st = &self.state;
+        let np = d.params();
+        let ns = st.sec.len();
+        jtj.fill(0.0);
+        jtr.fill(0.0);
+        let mut cost = 0.0;
+        for i in 0..d.z.len() {
+            let (pz, r) = self.weighted_log_ratio(i, s);
+            cost += r.norm_sqr();
+            let z = d.zm1[i];
+            let w = d.w[i];
+            // w / P: the weighted d ln H / dP
+            let wip = w * pz.inv();
+            let rigid = -d.gamma[i] / (st.j_total * st.j_total);
+            for (v, dj) in s.dpd.iter_mut().zip(&st.dj) {
+                *v = rigid * *dj;
+            }
+            for k in 0..ns {
+                let (e, g) = (s.e[k], s.g[k]);
+                let ze = z * e;
+                let ge = g * e;
+                let gze = ge * z;
+                let ds = &st.dsec[k * np..(k + 1) * np];
+                for (v, c) in s.dpd.iter_mut().zip(ds) {
+                    *v += ze * c[0] + e * c[1] - gze * c[2] - ge * c[3];
+                }
+            }
+            for j in 0..np {
+                let gj = s.dpd[j] * wip;
+                s.jr[j] = gj.re;
+                s.ji[j] = gj.im;
+            }
+            for a in 0..np {
+                let (ra, ia) = (s.jr[a], s.ji[a]);
+                jtr[a] += ra * r.re + ia * r.im;
+                let row = &mut jtj[a * np..(a + 1) * np];
+                for b in a..np {
+                    row[b] += ra * s.jr[b] + ia * s.ji[b];
+                }
+            }
+        }
+        for a in 0..np {
+            for b in 0..a {
+                jtj[a * np + b] = jtj[b * np + a];
+            }
+        }
+        let finite = cost.is_finite()
+            && jtr.iter().all(|v| v.is_finite())
+            && jtj.iter().all(|v| v.is_finite());
+        finite.then_some(cost)
+    }
+}
+
 impl LeastSquaresProblem<f64, Dyn, Dyn> for ChainProblem<'_> {
     type ResidualStorage = Owned<f64, Dyn>;
     type JacobianStorage = Owned<f64, Dyn, Dyn>;

@@ -61,6 +61,9 @@ struct ModelState {
     sec: Vec<[f64; 4]>,
     /// Derivatives of `[n1, n0, b1, b0]` at `[s * P + j]`.
     dsec: Vec<[f64; 4]>,
+    /// Flexible poles of the continuous chain at the current parameters (the Newton start
+    /// of the next update).
+    poles: Vec<Complex64>,
     ok: bool,
 }
 
@@ -144,6 +147,46 @@ fn conj_term(t: &PoleTerm) -> PoleTerm {
     }
 }
 
+/// Polish `poles` (the flexible poles of nearby parameters) into the flexible poles of
+/// `chain` by Newton's method on the ladder impedance, in place. `true` only when every
+/// pole converged and the result is a complete set: `2(n-1)` distinct, non-zero poles
+/// (the impedance has exactly that many flexible zeros, so distinct converged roots are
+/// all of them). Otherwise the caller computes them from scratch.
+fn newton_poles(chain: &Chain, poles: &mut [Complex64]) -> bool {
+    if poles.len() != 2 * (chain.masses() - 1) {
+        return false;
+    }
+    let mut scale: f64 = 0.0;
+    for p in poles.iter_mut() {
+        let mut done = false;
+        for _ in 0..12 {
+            let (z, dz) = chain.impedance_and_derivative(*p);
+            let step = z / dz;
+            if !(step.re.is_finite() && step.im.is_finite()) {
+                return false;
+            }
+            *p -= step;
+            if step.norm() <= 1e-14 * p.norm() {
+                done = true;
+                break;
+            }
+        }
+        if !done {
+            return false;
+        }
+        scale = scale.max(p.norm());
+    }
+    for (i, p) in poles.iter().enumerate() {
+        if !(p.norm() > 1e-6 * scale) {
+            return false;
+        }
+        if poles[..i].iter().any(|q| (p - q).norm() <= 1e-6 * p.norm()) {
+            return false;
+        }
+    }
+    true
+}
+
 /// Group poles into conjugate pairs and pairs of real poles.
 fn pair_poles(poles: &[Complex64]) -> Option<Vec<(Complex64, Option<Complex64>)>> {
     let tiny = |p: &Complex64| p.im.abs() <= 1e-12 * p.norm();
@@ -191,14 +234,21 @@ impl<'a> ChainProblem<'a> {
         }
         let chain = chain_of_theta(self.theta.as_slice(), n);
         st.j_total = chain.total_inertia();
-        st.dj = (0..np)
-            .map(|j| if j < n { chain.inertia_kgm2[j] } else { 0.0 })
-            .collect();
+        st.dj.clear();
+        st.dj
+            .extend((0..np).map(|j| if j < n { chain.inertia_kgm2[j] } else { 0.0 }));
         if n > 1 {
-            let Ok(sc) = SampledChain::new(&chain, d.fs_hz, 0) else {
-                return;
-            };
-            let Some(groups) = pair_poles(sc.poles()) else {
+            // the poles of the previous parameters, polished by Newton, when they are still
+            // the complete set; the eigenvalues of the chain otherwise
+            if !newton_poles(&chain, &mut st.poles) {
+                let Ok(sc) = SampledChain::new(&chain, d.fs_hz, 0) else {
+                    st.poles.clear();
+                    return;
+                };
+                st.poles.clear();
+                st.poles.extend_from_slice(sc.poles());
+            }
+            let Some(groups) = pair_poles(&st.poles) else {
                 return;
             };
             for (p1, p2) in groups {
@@ -232,7 +282,7 @@ impl<'a> ChainProblem<'a> {
                     ]);
                 }
             }
-            if 2 * st.sec.len() != sc.poles().len() {
+            if 2 * st.sec.len() != st.poles.len() {
                 return;
             }
         }

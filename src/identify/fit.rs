@@ -10,7 +10,11 @@
 //!   with an unknown (zero) variance get the median sigma of the others.
 //! * Jacobian: analytic, through the poles and residues of the chain (see
 //!   `problem.rs`).
-//! * Multi-start: the given chain plus `starts - 1` log-normal perturbations of it.
+//! * Solver: an own Levenberg-Marquardt on the normal equations, accumulated while the
+//!   residuals and Jacobian rows are computed (`lm.rs`; the `levenberg-marquardt` crate is
+//!   the reference it is tested against).
+//! * Multi-start: the given chain plus `starts - 1` log-normal perturbations of it, coarse
+//!   to fine on long FRFs (see [`fit_chain`]).
 //! * Covariance: `(J^T J)^-1 max(1, chi2/dof)`; standard deviations of the physical
 //!   parameters by the delta method, `sigma_p = p sigma_theta`.
 

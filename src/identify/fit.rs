@@ -10,16 +10,21 @@
 //!   with an unknown (zero) variance get the median sigma of the others.
 //! * Jacobian: analytic, through the poles and residues of the chain (see
 //!   `problem.rs`).
-//! * Multi-start: the given chain plus `starts - 1` log-normal perturbations of it.
+//! * Solver: an own Levenberg-Marquardt on the normal equations, accumulated while the
+//!   residuals and Jacobian rows are computed (`lm.rs`; the `levenberg-marquardt` crate is
+//!   the reference it is tested against).
+//! * Multi-start: the given chain plus `starts - 1` log-normal perturbations of it, coarse
+//!   to fine on long FRFs (see [`fit_chain`]).
 //! * Covariance: `(J^T J)^-1 max(1, chi2/dof)`; standard deviations of the physical
 //!   parameters by the delta method, `sigma_p = p sigma_theta`.
 
 use super::error::IdentifyError;
 use super::lines::{fallback_sigma, sample_rate, sigma_log, usable_lines, RigidReference};
+use super::lm::{self, LmOptions, LmWorkspace};
 use super::problem::{chain_of_theta, ChainProblem, FitData};
 use crate::frf::{Frf, FrfKind};
 use crate::model::Chain;
-use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
+use levenberg_marquardt::LeastSquaresProblem;
 use nalgebra::{DMatrix, DVector};
 use num_complex::Complex64;
 use rand::{Rng, SeedableRng};
@@ -111,29 +116,113 @@ pub struct ChainFit {
 /// Fit all parameters of a chain of `init.masses()` bodies to `frf`, starting from `init`
 /// (typically the exact inverse of the detected anti-resonance/resonance pairs) and
 /// `opts.starts - 1` random perturbations of it.
+///
+/// Coarse to fine: with many lines (at least `2 COARSE_LINES`), every start first runs on
+/// every `k`-th line only (about `COARSE_LINES` lines, loose tolerances); starts that reach
+/// the same coarse optimum (all log-parameters within `SAME_OPTIMUM`) are one candidate,
+/// candidates whose coarse cost is more than `HOPELESS` times the best are dropped, and
+/// only the remaining candidates are refined on all lines with the full tolerances. The
+/// refined optimum is the optimum of the full problem (the coarse phase only chooses where
+/// the full solver starts); `starts_converged` counts the starts behind the candidates
+/// that reached the best full cost.
 pub fn fit_chain(frf: &Frf, init: &Chain, opts: &FitOptions) -> Result<ChainFit, IdentifyError> {
+    fit_chain_coarse(frf, init, opts, COARSE_LINES)
+}
+
+/// [`fit_chain`] with `coarse_lines` lines in the coarse phase (`usize::MAX`: no coarse
+/// phase, every start runs on all lines).
+pub(super) fn fit_chain_coarse(
+    frf: &Frf,
+    init: &Chain,
+    opts: &FitOptions,
+    coarse_lines: usize,
+) -> Result<ChainFit, IdentifyError> {
     init.validate()?;
     let data = prepare(frf, init.masses(), opts)?;
     let theta0 = theta_of(init);
     let starts = make_starts(&theta0, init.masses(), opts);
-    let results = run_starts(&data, &starts, opts);
-    let mut ok: Vec<(f64, &DVector<f64>, usize)> = Vec::with_capacity(results.len());
+    let threads = worker_threads(opts, starts.len());
+    let np = data.params();
+    let full_lm = LmOptions {
+        ftol: 1e-10,
+        xtol: 1e-8,
+        gtol: 1e-10,
+        max_evals: opts.max_iter.div_ceil(np + 1).max(1) * (np + 1),
+    };
+    let stride = data.z.len() / coarse_lines.max(1);
     let mut last_err = String::from("no start");
-    for r in &results {
-        match r {
-            Ok((cost, theta, evals)) => ok.push((*cost, theta, *evals)),
-            Err(e) => last_err.clone_from(e),
+    let mut total = 0;
+    // (result on all lines, number of starts it stands for)
+    let mut finals: Vec<(StartRun, usize)> = Vec::new();
+    if stride >= 2 {
+        let coarse = data.decimated(stride);
+        let coarse_lm = LmOptions {
+            ftol: 1e-8,
+            xtol: 1e-6,
+            gtol: 1e-8,
+            ..full_lm
+        };
+        let first = par_map(&starts, threads, |t| {
+            run_one(&coarse, t.as_slice(), &coarse_lm)
+        });
+        let mut ok: Vec<&StartRun> = Vec::with_capacity(first.len());
+        for r in &first {
+            match r {
+                Ok(r) => {
+                    total += r.evals;
+                    ok.push(r);
+                }
+                Err(e) => last_err.clone_from(e),
+            }
+        }
+        ok.sort_by(|a, b| a.cost.total_cmp(&b.cost));
+        let mut groups: Vec<(&StartRun, usize)> = Vec::new();
+        if let Some(best) = ok.first().map(|r| r.cost) {
+            for r in ok {
+                if let Some(g) = groups
+                    .iter_mut()
+                    .find(|g| same_optimum(&g.0.theta, &r.theta))
+                {
+                    g.1 += 1;
+                } else if r.cost <= HOPELESS * best {
+                    groups.push((r, 1));
+                }
+            }
+        }
+        let refined = par_map(&groups, threads, |g| run_one(&data, &g.0.theta, &full_lm));
+        for (r, g) in refined.into_iter().zip(&groups) {
+            match r {
+                Ok(mut r) => {
+                    total += r.evals;
+                    r.evals += g.0.evals;
+                    finals.push((r, g.1));
+                }
+                Err(e) => last_err = e,
+            }
+        }
+    } else {
+        for r in par_map(&starts, threads, |t| run_one(&data, t.as_slice(), &full_lm)) {
+            match r {
+                Ok(r) => {
+                    total += r.evals;
+                    finals.push((r, 1));
+                }
+                Err(e) => last_err = e,
+            }
         }
     }
-    ok.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let total = results.iter().map(|r| r.as_ref().map_or(0, |x| x.2)).sum();
+    finals.sort_by(|a, b| a.0.cost.total_cmp(&b.0.cost));
     // The best start whose optimum can be summarised: a start that ran off to a degenerate
     // chain (a pole pair merging into a double pole, a parameter overflowing) has no finite
     // Jacobian there and is passed over for the next best.
-    for &(cost, theta, evals) in &ok {
-        let tol = cost * 1e-6 + 1e-9;
-        let converged = ok.iter().filter(|r| r.0 <= cost + tol).count();
-        match summarize(&data, theta.clone(), cost, evals, starts.len(), converged) {
+    for (r, _) in &finals {
+        let tol = r.cost * 1e-6 + 1e-9;
+        let converged = finals
+            .iter()
+            .filter(|f| f.0.cost <= r.cost + tol)
+            .map(|f| f.1)
+            .sum();
+        match summarize(&data, &r.theta, r.cost, r.evals, starts.len(), converged) {
             Ok(mut fit) => {
                 fit.evaluations_total = total;
                 return Ok(fit);
@@ -146,6 +235,18 @@ pub fn fit_chain(frf: &Frf, init: &Chain, opts: &FitOptions) -> Result<ChainFit,
         starts: starts.len(),
         reason: last_err,
     })
+}
+
+/// Lines of the coarse problem the starts of [`fit_chain`] first run on (when there are at
+/// least twice as many).
+const COARSE_LINES: usize = 500;
+/// Coarse optima closer than this in every log-parameter are one candidate (0.1 %).
+const SAME_OPTIMUM: f64 = 1e-3;
+/// Coarse optima with more than this times the best coarse cost are not refined.
+const HOPELESS: f64 = 4.0;
+
+fn same_optimum(a: &[f64], b: &[f64]) -> bool {
+    a.iter().zip(b).all(|(x, y)| (x - y).abs() < SAME_OPTIMUM)
 }
 
 /// One candidate order of [`select_order`].
@@ -276,7 +377,7 @@ pub fn weighted_residuals(
 
 /// Log-parameters of a chain; zero dampings are floored at a damping ratio of about 1e-4 so
 /// that their logarithm exists.
-fn theta_of(chain: &Chain) -> DVector<f64> {
+pub(super) fn theta_of(chain: &Chain) -> DVector<f64> {
     let n = chain.masses();
     let mut t = Vec::with_capacity(3 * n - 2);
     t.extend(chain.inertia_kgm2.iter().map(|v| v.ln()));
@@ -308,43 +409,48 @@ fn make_starts(theta0: &DVector<f64>, n: usize, opts: &FitOptions) -> Vec<DVecto
     starts
 }
 
-type StartResult = Result<(f64, DVector<f64>, usize), String>;
-
-fn run_one(data: &FitData, theta: &DVector<f64>, opts: &FitOptions) -> StartResult {
-    let np = data.params();
-    let patience = opts.max_iter.div_ceil(np + 1).max(1);
-    let lm = LevenbergMarquardt::new()
-        .with_ftol(1e-10)
-        .with_xtol(1e-8)
-        .with_gtol(1e-10)
-        .with_patience(patience);
-    let problem = ChainProblem::new(data, theta.clone());
-    let (problem, report) = lm.minimize(problem);
-    let cost = 2.0 * report.objective_function;
-    if report.termination.was_usage_issue() && !cost.is_finite() {
-        return Err(format!("{:?}", report.termination));
-    }
-    if !cost.is_finite() {
-        return Err(format!("non-finite cost ({:?})", report.termination));
-    }
-    Ok((cost, problem.params(), report.number_of_evaluations))
+/// One start's optimum.
+struct StartRun {
+    cost: f64,
+    theta: Vec<f64>,
+    evals: usize,
 }
 
-fn run_starts(data: &FitData, starts: &[DVector<f64>], opts: &FitOptions) -> Vec<StartResult> {
+fn run_one(data: &FitData, theta: &[f64], lm_opts: &LmOptions) -> Result<StartRun, String> {
+    let mut problem = ChainProblem::unset(data);
+    let mut ws = LmWorkspace::new(&problem, data.params());
+    let out = lm::minimize(&mut problem, theta, lm_opts, &mut ws)?;
+    if !out.cost.is_finite() {
+        return Err("non-finite cost".into());
+    }
+    Ok(StartRun {
+        cost: out.cost,
+        theta: ws.theta,
+        evals: out.evaluations,
+    })
+}
+
+fn worker_threads(opts: &FitOptions, jobs: usize) -> usize {
     let threads = if opts.threads == 0 {
         std::thread::available_parallelism().map_or(1, |n| n.get().min(4))
     } else {
         opts.threads
     };
-    let threads = threads.clamp(1, starts.len().max(1));
+    threads.clamp(1, jobs.max(1))
+}
+
+/// `f` on every item, in order, on up to `threads` scoped threads.
+fn par_map<T: Sync, R: Send>(items: &[T], threads: usize, f: impl Fn(&T) -> R + Sync) -> Vec<R> {
+    let threads = threads.clamp(1, items.len().max(1));
     if threads == 1 {
-        return starts.iter().map(|t| run_one(data, t, opts)).collect();
+        return items.iter().map(&f).collect();
     }
-    let chunk = starts.len().div_ceil(threads);
+    let chunk = items.len().div_ceil(threads);
+    let f = &f;
     std::thread::scope(|s| {
-        let handles: Vec<_> = starts
+        let handles: Vec<_> = items
             .chunks(chunk)
-            .map(|c| s.spawn(move || c.iter().map(|t| run_one(data, t, opts)).collect::<Vec<_>>()))
+            .map(|c| s.spawn(move || c.iter().map(f).collect::<Vec<_>>()))
             .collect();
         handles
             .into_iter()
@@ -354,7 +460,11 @@ fn run_starts(data: &FitData, starts: &[DVector<f64>], opts: &FitOptions) -> Vec
 }
 
 /// Lines, weights and the known measurement factor, prepared once.
-fn prepare(frf: &Frf, masses: usize, opts: &FitOptions) -> Result<FitData, IdentifyError> {
+pub(super) fn prepare(
+    frf: &Frf,
+    masses: usize,
+    opts: &FitOptions,
+) -> Result<FitData, IdentifyError> {
     let fs = sample_rate(frf)?;
     // checks the kind
     let _ = RigidReference::new(frf, opts.delay_samples)?;
@@ -429,7 +539,7 @@ fn central_difference_jacobian(data: &FitData, theta: &DVector<f64>) -> Option<D
 
 fn summarize(
     data: &FitData,
-    theta: DVector<f64>,
+    theta: &[f64],
     cost: f64,
     evals: usize,
     starts: usize,
@@ -438,18 +548,26 @@ fn summarize(
     let n = data.masses;
     let np = data.params();
     let lines = data.z.len();
-    let problem = ChainProblem::new(data, theta.clone());
-    let jac = problem
-        .jacobian()
-        .or_else(|| central_difference_jacobian(data, &theta))
-        .ok_or_else(|| IdentifyError::FitFailed {
-            masses: n,
-            starts,
-            reason: "Jacobian not finite at the optimum".into(),
-        })?;
+    let mut problem = ChainProblem::unset(data);
+    problem.set_theta(theta);
+    let mut jtj = vec![0.0; np * np];
+    let mut jtr = vec![0.0; np];
+    let jtj = match problem.normal_equations(&mut problem.scratch(), &mut jtj, &mut jtr) {
+        Some(_) => DMatrix::from_row_slice(np, np, &jtj),
+        None => {
+            let theta = DVector::from_column_slice(theta);
+            let jac = central_difference_jacobian(data, &theta).ok_or_else(|| {
+                IdentifyError::FitFailed {
+                    masses: n,
+                    starts,
+                    reason: "Jacobian not finite at the optimum".into(),
+                }
+            })?;
+            jac.transpose() * &jac
+        }
+    };
     let dof = (2 * lines).saturating_sub(np);
     let chi2_per_dof = if dof > 0 { cost / dof as f64 } else { f64::NAN };
-    let jtj = jac.transpose() * &jac;
     let inv = invert_spd(&jtj);
     let infl = if chi2_per_dof.is_finite() {
         chi2_per_dof.max(1.0)
@@ -457,7 +575,7 @@ fn summarize(
         1.0
     };
     let cov = inv * infl;
-    let chain = chain_of_theta(theta.as_slice(), n);
+    let chain = chain_of_theta(theta, n);
     let sd: Vec<f64> = (0..np)
         .map(|j| theta[j].exp() * cov[(j, j)].max(0.0).sqrt())
         .collect();
@@ -490,7 +608,7 @@ fn summarize(
 
 /// Inverse of a symmetric positive semi-definite matrix: Cholesky, or the pseudo-inverse
 /// (singular values below 1e-12 of the largest dropped) when it is singular.
-fn invert_spd(a: &DMatrix<f64>) -> DMatrix<f64> {
+pub(super) fn invert_spd(a: &DMatrix<f64>) -> DMatrix<f64> {
     if let Some(ch) = a.clone().cholesky() {
         return ch.inverse();
     }

@@ -16,11 +16,14 @@ pub mod fit;
 pub mod inertia;
 mod jet;
 mod lines;
+mod lm;
 mod local_fit;
 pub mod paper;
 mod problem;
 
 #[cfg(test)]
 mod tests_fit;
+#[cfg(test)]
+mod tests_lm;
 #[cfg(test)]
 mod tests_paper;

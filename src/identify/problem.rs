@@ -61,6 +61,9 @@ struct ModelState {
     sec: Vec<[f64; 4]>,
     /// Derivatives of `[n1, n0, b1, b0]` at `[s * P + j]`.
     dsec: Vec<[f64; 4]>,
+    /// Flexible poles of the continuous chain at the current parameters (the Newton start
+    /// of the next update).
+    poles: Vec<Complex64>,
     ok: bool,
 }
 
@@ -144,6 +147,46 @@ fn conj_term(t: &PoleTerm) -> PoleTerm {
     }
 }
 
+/// Polish `poles` (the flexible poles of nearby parameters) into the flexible poles of
+/// `chain` by Newton's method on the ladder impedance, in place. `true` only when every
+/// pole converged and the result is a complete set: `2(n-1)` distinct, non-zero poles
+/// (the impedance has exactly that many flexible zeros, so distinct converged roots are
+/// all of them). Otherwise the caller computes them from scratch.
+fn newton_poles(chain: &Chain, poles: &mut [Complex64]) -> bool {
+    if poles.len() != 2 * (chain.masses() - 1) {
+        return false;
+    }
+    let mut scale: f64 = 0.0;
+    for p in poles.iter_mut() {
+        let mut done = false;
+        for _ in 0..12 {
+            let (z, dz) = chain.impedance_and_derivative(*p);
+            let step = z / dz;
+            if !(step.re.is_finite() && step.im.is_finite()) {
+                return false;
+            }
+            *p -= step;
+            if step.norm() <= 1e-14 * p.norm() {
+                done = true;
+                break;
+            }
+        }
+        if !done {
+            return false;
+        }
+        scale = scale.max(p.norm());
+    }
+    for (i, p) in poles.iter().enumerate() {
+        if !(p.norm() > 1e-6 * scale) {
+            return false;
+        }
+        if poles[..i].iter().any(|q| (p - q).norm() <= 1e-6 * p.norm()) {
+            return false;
+        }
+    }
+    true
+}
+
 /// Group poles into conjugate pairs and pairs of real poles.
 fn pair_poles(poles: &[Complex64]) -> Option<Vec<(Complex64, Option<Complex64>)>> {
     let tiny = |p: &Complex64| p.im.abs() <= 1e-12 * p.norm();
@@ -191,14 +234,21 @@ impl<'a> ChainProblem<'a> {
         }
         let chain = chain_of_theta(self.theta.as_slice(), n);
         st.j_total = chain.total_inertia();
-        st.dj = (0..np)
-            .map(|j| if j < n { chain.inertia_kgm2[j] } else { 0.0 })
-            .collect();
+        st.dj.clear();
+        st.dj
+            .extend((0..np).map(|j| if j < n { chain.inertia_kgm2[j] } else { 0.0 }));
         if n > 1 {
-            let Ok(sc) = SampledChain::new(&chain, d.fs_hz, 0) else {
-                return;
-            };
-            let Some(groups) = pair_poles(sc.poles()) else {
+            // the poles of the previous parameters, polished by Newton, when they are still
+            // the complete set; the eigenvalues of the chain otherwise
+            if !newton_poles(&chain, &mut st.poles) {
+                let Ok(sc) = SampledChain::new(&chain, d.fs_hz, 0) else {
+                    st.poles.clear();
+                    return;
+                };
+                st.poles.clear();
+                st.poles.extend_from_slice(sc.poles());
+            }
+            let Some(groups) = pair_poles(&st.poles) else {
                 return;
             };
             for (p1, p2) in groups {
@@ -232,7 +282,7 @@ impl<'a> ChainProblem<'a> {
                     ]);
                 }
             }
-            if 2 * st.sec.len() != sc.poles().len() {
+            if 2 * st.sec.len() != st.poles.len() {
                 return;
             }
         }
@@ -273,6 +323,151 @@ impl<'a> ChainProblem<'a> {
                 })
                 .collect(),
         )
+    }
+}
+
+/// Scratch of the line pass, sized once per fit ([`ChainProblem::scratch`]): nothing is
+/// allocated per evaluation.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct LineScratch {
+    e: Vec<Complex64>,
+    g: Vec<Complex64>,
+    dpd: Vec<Complex64>,
+    /// Real and imaginary parts of one Jacobian row pair (weighted), per parameter.
+    jr: Vec<f64>,
+    ji: Vec<f64>,
+}
+
+impl FitData {
+    /// Every `stride`-th line (from the first): the coarse problem of the multi-start fit.
+    pub(crate) fn decimated(&self, stride: usize) -> FitData {
+        let stride = stride.max(1);
+        let pick = |v: &Vec<Complex64>| v.iter().step_by(stride).copied().collect();
+        FitData {
+            fs_hz: self.fs_hz,
+            ts: self.ts,
+            masses: self.masses,
+            z: pick(&self.z),
+            zm1: pick(&self.zm1),
+            k: pick(&self.k),
+            gamma: pick(&self.gamma),
+            w: self.w.iter().step_by(stride).copied().collect(),
+        }
+    }
+}
+
+impl<'a> ChainProblem<'a> {
+    /// A problem on `data` with no parameters set yet (invalid until [`Self::set_theta`]).
+    pub(crate) fn unset(data: &'a FitData) -> Self {
+        ChainProblem {
+            data,
+            theta: DVector::zeros(0),
+            state: ModelState::default(),
+        }
+    }
+
+    /// Scratch buffers for [`Self::normal_equations`].
+    pub(crate) fn scratch(&self) -> LineScratch {
+        let np = self.data.params();
+        let ns = self.data.masses.saturating_sub(1);
+        let zero = Complex64::new(0.0, 0.0);
+        LineScratch {
+            e: vec![zero; ns],
+            g: vec![zero; ns],
+            dpd: vec![zero; np],
+            jr: vec![0.0; np],
+            ji: vec![0.0; np],
+        }
+    }
+
+    /// Move to the log-parameters `theta` (same length as before), without allocating the
+    /// parameter vector.
+    pub(crate) fn set_theta(&mut self, theta: &[f64]) {
+        if self.theta.len() == theta.len() {
+            self.theta.as_mut_slice().copy_from_slice(theta);
+        } else {
+            self.theta = DVector::from_column_slice(theta);
+        }
+        self.update();
+    }
+
+    /// Weighted complex log-ratio `w ln(H_model/H_meas)` on line `i` (fills the scratch's
+    /// section terms).
+    #[inline]
+    fn weighted_log_ratio(&self, i: usize, s: &mut LineScratch) -> (Complex64, Complex64) {
+        let pz = self.position(i, &mut s.e, &mut s.g);
+        let v = pz * self.data.k[i];
+        let w = self.data.w[i];
+        (
+            pz,
+            Complex64::new(w * 0.5 * v.norm_sqr().ln(), w * v.im.atan2(v.re)),
+        )
+    }
+
+    /// The cost `sum r^2` together with the normal equations `J^T J` (`jtj`, `P x P`
+    /// row-major, both triangles) and `J^T r` (`jtr`), accumulated line by line while the
+    /// residuals and the analytic Jacobian rows are computed: the `2 lines x P` Jacobian is
+    /// never formed. `None` where the model is invalid or anything is not finite.
+    pub(crate) fn normal_equations(
+        &self,
+        s: &mut LineScratch,
+        jtj: &mut [f64],
+        jtr: &mut [f64],
+    ) -> Option<f64> {
+        if !self.state.ok {
+            return None;
+        }
+        let d = self.data;
+        let st = &self.state;
+        let np = d.params();
+        let ns = st.sec.len();
+        jtj.fill(0.0);
+        jtr.fill(0.0);
+        let mut cost = 0.0;
+        for i in 0..d.z.len() {
+            let (pz, r) = self.weighted_log_ratio(i, s);
+            cost += r.norm_sqr();
+            let z = d.zm1[i];
+            let w = d.w[i];
+            // w / P: the weighted d ln H / dP
+            let wip = w * pz.inv();
+            let rigid = -d.gamma[i] / (st.j_total * st.j_total);
+            for (v, dj) in s.dpd.iter_mut().zip(&st.dj) {
+                *v = rigid * *dj;
+            }
+            for k in 0..ns {
+                let (e, g) = (s.e[k], s.g[k]);
+                let ze = z * e;
+                let ge = g * e;
+                let gze = ge * z;
+                let ds = &st.dsec[k * np..(k + 1) * np];
+                for (v, c) in s.dpd.iter_mut().zip(ds) {
+                    *v += ze * c[0] + e * c[1] - gze * c[2] - ge * c[3];
+                }
+            }
+            for j in 0..np {
+                let gj = s.dpd[j] * wip;
+                s.jr[j] = gj.re;
+                s.ji[j] = gj.im;
+            }
+            for a in 0..np {
+                let (ra, ia) = (s.jr[a], s.ji[a]);
+                jtr[a] += ra * r.re + ia * r.im;
+                let row = &mut jtj[a * np..(a + 1) * np];
+                for b in a..np {
+                    row[b] += ra * s.jr[b] + ia * s.ji[b];
+                }
+            }
+        }
+        for a in 0..np {
+            for b in 0..a {
+                jtj[a * np + b] = jtj[b * np + a];
+            }
+        }
+        let finite = cost.is_finite()
+            && jtr.iter().all(|v| v.is_finite())
+            && jtj.iter().all(|v| v.is_finite());
+        finite.then_some(cost)
     }
 }
 

@@ -31,12 +31,12 @@ fn with_zeta(j: Vec<f64>, c: Vec<f64>, zeta: f64) -> Chain {
     Chain::new(j, c, d).unwrap()
 }
 
-fn two_mass() -> Chain {
+pub(super) fn two_mass() -> Chain {
     with_zeta(vec![2e-3, 6e-3], vec![400.0], 0.02)
 }
 
 /// Modes at about 2.9/5 Hz and 380/590 Hz.
-fn three_mass() -> Chain {
+pub(super) fn three_mass() -> Chain {
     Chain::new(
         vec![3.6e-3, 5.1e-3, 17.2e-3],
         vec![2.9e4, 5.7],
@@ -46,7 +46,7 @@ fn three_mass() -> Chain {
 }
 
 /// Modes at 40/60, 150/230, 500/700 Hz.
-fn four_mass(zeta: f64) -> Chain {
+pub(super) fn four_mass(zeta: f64) -> Chain {
     with_zeta(
         vec![2e-3, 2.80799e-3, 5.79811e-3, 10.13069e-3],
         vec![21507.84, 5591.344, 759.5048],
@@ -54,7 +54,7 @@ fn four_mass(zeta: f64) -> Chain {
     )
 }
 
-fn grid_for(ch: &Chain) -> Vec<f64> {
+pub(super) fn grid_for(ch: &Chain) -> Vec<f64> {
     match ch.masses() {
         2 => log_grid(2.0, 1000.0, 500),
         3 => log_grid(0.5, 1000.0, 600),
@@ -65,7 +65,7 @@ fn grid_for(ch: &Chain) -> Vec<f64> {
 /// Simulated FRF: exact sampled response with complex Gaussian noise of relative standard
 /// deviation `rel` (variance `rel^2 |h|^2`); `rel = 0` gives a noise-free FRF carrying a
 /// nominal 1e-3 relative variance.
-fn simulate(ch: &Chain, freqs: &[f64], rel: f64, seed: u64) -> Frf {
+pub(super) fn simulate(ch: &Chain, freqs: &[f64], rel: f64, seed: u64) -> Frf {
     let sc = SampledChain::new(ch, FS, 0).unwrap();
     let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
     let nrm = Normal::new(0.0, std::f64::consts::FRAC_1_SQRT_2).unwrap();
@@ -88,7 +88,7 @@ fn simulate(ch: &Chain, freqs: &[f64], rel: f64, seed: u64) -> Frf {
 }
 
 /// The truth scaled by fixed factors of 20-30 %.
-fn perturbed(ch: &Chain) -> Chain {
+pub(super) fn perturbed(ch: &Chain) -> Chain {
     let fj = [1.25, 0.8, 1.2, 0.75];
     let fc = [0.75, 1.3, 0.8];
     let fd = [2.0, 0.5, 3.0];

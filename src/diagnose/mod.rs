@@ -369,12 +369,8 @@ pub fn diagnose(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Diagnosis,
     // every level's identification is a start (a strongly nonlinear level can make its
     // own one fail, e.g. a spring hardened far beyond its small-signal value); the joint
     // fit with the lowest chi² over all levels is the nominal model
-    let mut best: Option<(LinExt, f64)> = None;
-    for &i in &order {
-        let Some(start) = nominal_start(&data.levels[i].rec, n, opts.band_hz) else {
-            continue;
-        };
-        let lin = effects::fit_linear(
+    let fit_nominal = |start: crate::model::Chain| {
+        effects::fit_linear(
             &data,
             &data.targets,
             Lin::None,
@@ -382,7 +378,14 @@ pub fn diagnose(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Diagnosis,
             60,
         )
         .map(|r| r.0)
-        .unwrap_or_else(|| LinExt::nominal(start));
+        .unwrap_or_else(|| LinExt::nominal(start))
+    };
+    let mut best: Option<(LinExt, f64)> = None;
+    for &i in &order {
+        let Some(start) = nominal_start(&data.levels[i].rec, n, opts.band_hz) else {
+            continue;
+        };
+        let lin = fit_nominal(start);
         let chi2 = data.chi2(&effects::model_on(
             &lin,
             data.fs,
@@ -412,15 +415,7 @@ pub fn diagnose(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Diagnosis,
                         .nth(1)
                 })
                 .ok_or(DiagnoseError::NoNominal(top, n))?;
-            effects::fit_linear(
-                &data,
-                &data.targets,
-                Lin::None,
-                &LinExt::nominal(start.clone()),
-                60,
-            )
-            .map(|r| r.0)
-            .unwrap_or_else(|| LinExt::nominal(start))
+            fit_nominal(start)
         }
     };
     let nominal = effects::finish_linear(&data, "none", nom_lin.clone(), vec![], 0);

@@ -48,6 +48,7 @@ fn main() {
     let mut confusion = vec![vec![0usize; CLASSES.len()]; CLASSES.len()];
     let mut ratios: Vec<Vec<f64>> = vec![Vec::new(); CLASSES.len()];
     let mut times = Vec::new();
+    let mut cpu_times = Vec::new();
     for class in &classes {
         let ci = CLASSES.iter().position(|c| c == class).unwrap();
         for k in 0..per_class {
@@ -61,6 +62,7 @@ fn main() {
                 .map(|p| read_recording(p).unwrap())
                 .collect();
             let t = std::time::Instant::now();
+            let c0 = thread_cpu_s();
             let d = diagnose(
                 &recs,
                 &DiagnoseOptions {
@@ -74,6 +76,7 @@ fn main() {
             );
             let secs = t.elapsed().as_secs_f64();
             times.push(secs);
+            cpu_times.push(thread_cpu_s() - c0);
             let truth: serde_json::Value =
                 serde_json::from_str(&std::fs::read_to_string(&case.truth_path).unwrap()).unwrap();
             let want = truth["effect"].as_str().unwrap();
@@ -150,14 +153,26 @@ fn main() {
             ok &= worst <= 0.5;
         }
     }
-    times.sort_by(f64::total_cmp);
-    if !times.is_empty() {
-        println!(
-            "\ndiagnosis time per case (2 levels, 3 masses): median {:.2} s, max {:.2} s",
-            times[times.len() / 2],
-            times.last().unwrap()
-        );
+    // the speed target: one two-level 3-mass diagnosis under 2 s on one core. The
+    // diagnosis is single-threaded; its thread's CPU time is the one-core time (the wall
+    // time is inflated when the machine is shared), both reported against the target
+    const TARGET_S: f64 = 2.0;
+    for (what, t) in [("CPU (one core)", &mut cpu_times), ("wall", &mut times)] {
+        t.sort_by(f64::total_cmp);
+        if let Some(&max) = t.last() {
+            let med = t[t.len() / 2];
+            println!(
+                "diagnosis time per case (2 levels, 3 masses), {what}: median {med:.2} s, max {max:.2} s; median/target {:.2}, max/target {:.2} (target {TARGET_S} s)",
+                med / TARGET_S,
+                max / TARGET_S
+            );
+        }
     }
+    let speed_ok = cpu_times.last().is_some_and(|&m| m < TARGET_S);
+    println!(
+        "speed target (every case under {TARGET_S} s of one core): {}",
+        if speed_ok { "met" } else { "MISSED" }
+    );
     // A benchmark reports; the always-run assertions are in tests/withheld_effect.rs.
     // FLEXID_BENCH_STRICT=1 turns a missed target into a failure (for acceptance runs).
     println!(
@@ -167,4 +182,18 @@ fn main() {
     if !ok && std::env::var("FLEXID_BENCH_STRICT").is_ok_and(|v| v == "1") {
         std::process::exit(1);
     }
+}
+
+/// CPU time of the calling thread [s].
+fn thread_cpu_s() -> f64 {
+    let mut ts = libc::timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
+    // SAFETY: a valid out-pointer to a timespec
+    let r = unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut ts) };
+    if r != 0 {
+        return f64::NAN;
+    }
+    ts.tv_sec as f64 + 1e-9 * ts.tv_nsec as f64
 }

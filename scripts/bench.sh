@@ -104,12 +104,12 @@ fi
 # The withheld-effect benchmark of `flexid diagnose` (benches/withheld_effect.rs): random
 # axes with one unmodelled effect each, simulated by the fine-step plant, diagnosed without
 # the truth; prints the confusion matrix, the gap ratios and the time per case. --quick: 3
-# cases per class; full: 10. Reports whether the targets (90 % per class, gap halved) are
+# cases per class; full: 20. Reports whether the targets (90 % per class, gap halved) are
 # met; FLEXID_BENCH_STRICT=1 makes a miss fail the script.
 if [ ${#mode[@]} -gt 0 ]; then
     cases=3
 else
-    cases=10
+    cases=20
 fi
 wexe=$(cargo build --release --bench withheld_effect --message-format=json 2>/dev/null |
     sed -n 's/.*"executable":"\([^"]*withheld_effect[^"]*\)".*/\1/p' | tail -n 1)

@@ -75,7 +75,7 @@ impl Default for DiagnoseOptions {
             masses: 2,
             band_hz: None,
             substeps: 4,
-            spring_substeps: 16,
+            spring_substeps: 4,
             fit_lines: 300,
             force_nonlinear: false,
         }
@@ -366,28 +366,58 @@ pub fn diagnose(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Diagnosis,
             .torque_rms
             .total_cmp(&data.levels[a].torque_rms)
     });
-    let start = order
-        .iter()
-        .find_map(|&i| nominal_start(&data.levels[i].rec, n, opts.band_hz))
-        .or_else(|| {
+    // every level's identification is a start (a strongly nonlinear level can make its
+    // own one fail, e.g. a spring hardened far beyond its small-signal value); the joint
+    // fit with the lowest chi² over all levels is the nominal model
+    let fit_nominal = |start: crate::model::Chain| {
+        effects::fit_linear(
+            &data,
+            &data.targets,
+            Lin::None,
+            &LinExt::nominal(start.clone()),
+            60,
+        )
+        .map(|r| r.0)
+        .unwrap_or_else(|| LinExt::nominal(start))
+    };
+    let mut best: Option<(LinExt, f64)> = None;
+    for &i in &order {
+        let Some(start) = nominal_start(&data.levels[i].rec, n, opts.band_hz) else {
+            continue;
+        };
+        let lin = fit_nominal(start);
+        let chi2 = data.chi2(&effects::model_on(
+            &lin,
+            data.fs,
+            data.kind,
+            &data.full_targets,
+        ));
+        let done = chi2 < rank::NOISE_CHI2 * data.lines() as f64;
+        if best.as_ref().is_none_or(|b| chi2 < b.1) {
+            best = Some((lin, chi2));
+        }
+        if done {
+            break;
+        }
+    }
+    let nom_lin = match best {
+        Some((lin, _)) => lin,
+        None => {
             // fewer detected pairs than the model has: one body less, plus one appended
             // near the top of the band
-            let m = n.checked_sub(1).filter(|&m| m > 0)?;
-            let c = nominal_start(&data.levels[top].rec, m, opts.band_hz)?;
-            effects::mode::starts(&c, &[0.5 * data.f_max()], &[])
-                .into_iter()
-                .nth(1)
-        })
-        .ok_or(DiagnoseError::NoNominal(top, n))?;
-    let nom_lin = effects::fit_linear(
-        &data,
-        &data.targets,
-        Lin::None,
-        &LinExt::nominal(start.clone()),
-        60,
-    )
-    .map(|r| r.0)
-    .unwrap_or_else(|| LinExt::nominal(start));
+            let start = n
+                .checked_sub(1)
+                .filter(|&m| m > 0)
+                .and_then(|m| nominal_start(&data.levels[top].rec, m, opts.band_hz))
+                .and_then(|c| {
+                    effects::mode::starts(&c, &[0.5 * data.f_max()], &[])
+                        .into_iter()
+                        .nth(1)
+                })
+                .ok_or(DiagnoseError::NoNominal(top, n))?;
+            fit_nominal(start)
+        }
+    };
     let nominal = effects::finish_linear(&data, "none", nom_lin.clone(), vec![], 0);
 
     // what the residual is made of
@@ -395,25 +425,29 @@ pub fn diagnose(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Diagnosis,
 
     let mut fits: Vec<EffectFit> = Vec::new();
     let mut clock = std::time::Instant::now();
-    let mut push = |e: Option<EffectFit>, name: &str, notes: &mut Vec<String>| {
-        notes.push(format!("{name}: {:.2} s", clock.elapsed().as_secs_f64()));
-        clock = std::time::Instant::now();
-        match e {
-            Some(e) => fits.push(e),
-            None => notes.push(format!("{name}: no fit")),
-        }
-    };
+    let mut push =
+        |fits: &mut Vec<EffectFit>, e: Option<EffectFit>, name: &str, notes: &mut Vec<String>| {
+            notes.push(format!("{name}: {:.2} s", clock.elapsed().as_secs_f64()));
+            clock = std::time::Instant::now();
+            match e {
+                Some(e) => fits.push(e),
+                None => notes.push(format!("{name}: no fit")),
+            }
+        };
     push(
+        &mut fits,
         effects::delay::fit(&data, &nom_lin),
         "time_delay",
         &mut notes,
     );
     push(
+        &mut fits,
         effects::current_loop::fit(&data, &nom_lin),
         "current_loop",
         &mut notes,
     );
     push(
+        &mut fits,
         effects::gravity::fit(&data, &nom_lin),
         "gravity",
         &mut notes,
@@ -438,39 +472,32 @@ pub fn diagnose(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Diagnosis,
         .collect();
     let mode_starts = effects::mode::starts(&nom_lin.chain, &freqs, &extra);
     let mode_fit = effects::mode::fit(&data, &mode_starts);
-    let mut ground_as_gravity: Option<EffectFit> = None;
-    // an "extra body" far heavier than the whole axis is the ground: its spring is a
-    // restoring stiffness on the last body (gravity); the better of the two gravity fits
-    if let Some(mf) = &mode_fit {
-        let ch = &mf.lin.chain;
-        let je = *ch.inertia_kgm2.last().unwrap();
-        if je > 50.0 * nom_lin.chain.total_inertia() {
-            let mut g = mf.clone();
-            g.effect = "gravity";
-            g.params = vec![
-                EffectFit::param(
-                    "m_g_l_nm",
-                    *ch.stiffness_nm_per_rad.last().unwrap(),
-                    f64::NAN,
-                ),
-                EffectFit::param(
-                    "damping_nms_per_rad",
-                    *ch.damping_nms_per_rad.last().unwrap(),
-                    f64::NAN,
-                ),
-                EffectFit::param("ground_inertia_kgm2", je, f64::NAN),
-            ];
-            ground_as_gravity = Some(g);
-        }
-    }
-    push(mode_fit, "unmodelled_mode", &mut notes);
-    if residual.nonlinear || opts.force_nonlinear {
+    // an "extra body" far heavier than the rest of the axis is the ground: its spring is a
+    // restoring stiffness on the last body (gravity; the nominal chain may have spent a body
+    // on it already). Refitted as gravity from there; the better of the two gravity fits.
+    let ground_as_gravity = mode_fit
+        .as_ref()
+        .and_then(|mf| effects::gravity::from_ground_body(&data, &mf.lin.chain));
+    push(&mut fits, mode_fit, "unmodelled_mode", &mut notes);
+    // early rejection: a linear candidate that already leaves only noise cannot be beaten
+    // significantly by a simulated one
+    let explained = fits
+        .iter()
+        .any(|f| f.chi2 < rank::NOISE_CHI2 * data.lines() as f64);
+    if explained && !opts.force_nonlinear {
+        notes.push(
+            "amplitude-dependent candidates not simulated: a linear candidate leaves only noise"
+                .into(),
+        );
+    } else if residual.nonlinear || opts.force_nonlinear {
         push(
+            &mut fits,
             effects::friction::fit(&data, &nom_lin),
             "coulomb_friction",
             &mut notes,
         );
         push(
+            &mut fits,
             effects::backlash::fit(&data, &nom_lin),
             "backlash",
             &mut notes,
@@ -489,6 +516,7 @@ pub fn diagnose(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Diagnosis,
                 .map(|r| r.0)
                 .unwrap_or_else(|| nom_lin.clone());
         push(
+            &mut fits,
             effects::hardening::fit(&data, &low_lin),
             "hardening_stiffness",
             &mut notes,

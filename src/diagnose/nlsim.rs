@@ -31,6 +31,31 @@ pub enum Nl {
     },
 }
 
+/// Finer steps per sub-step around a backlash contact change.
+const MICRO: usize = 8;
+
+/// One exact ZOH step of a linear mode: `x' = A x + bu u + bc fc`.
+struct Prop {
+    a: Vec<f64>,
+    bu: Vec<f64>,
+    bc: Vec<f64>,
+}
+
+impl Prop {
+    #[inline]
+    fn apply(&self, x: &[f64], xn: &mut [f64], u: f64, fc: f64) {
+        let ns = x.len();
+        for (r, out) in xn.iter_mut().enumerate() {
+            let row = &self.a[r * ns..(r + 1) * ns];
+            let mut s = self.bu[r] * u + self.bc[r] * fc;
+            for (a, xv) in row.iter().zip(x) {
+                s += a * xv;
+            }
+            *out = s;
+        }
+    }
+}
+
 /// Simulated motor position and velocity at the sample instants, and the RMS deflection
 /// of each coupling.
 pub struct SimOut {
@@ -50,28 +75,59 @@ pub fn simulate(lin: &LinExt, nl: Nl, u: &[f64], fs: f64, substeps: usize) -> Si
     plain.current_loop = None;
     let (a, b) = plain.continuous(if n > 1 { Some(k) } else { None });
     let sub = substeps.max(1);
-    let (ad, bd) = zoh(&a, &b, 1.0 / fs / sub as f64);
+    let dt = 1.0 / fs / sub as f64;
     let ns = a.nrows();
-    let adv: Vec<f64> = (0..ns * ns).map(|i| ad[(i / ns, i % ns)]).collect();
-    let col = |j: usize| -> Vec<f64> {
+    let flat = |m: &nalgebra::DMatrix<f64>| -> Vec<f64> {
+        (0..ns * ns).map(|i| m[(i / ns, i % ns)]).collect()
+    };
+    let col = |bd: &nalgebra::DMatrix<f64>, j: usize| -> Vec<f64> {
         if j < bd.ncols() {
             (0..ns).map(|r| bd[(r, j)]).collect()
         } else {
             vec![0.0; ns]
         }
     };
-    let (bu, bm, bc) = (col(0), col(1), col(2));
-    let bm = if n > 1 { bm } else { bu.clone() };
-    let (c, d) = if n > 1 {
-        (ch.stiffness_nm_per_rad[k], ch.damping_nms_per_rad[k])
+    let prop = |a: &nalgebra::DMatrix<f64>, b: &nalgebra::DMatrix<f64>, t: f64| {
+        let (ad, bd) = zoh(a, b, t);
+        Prop {
+            a: flat(&ad),
+            bu: col(&bd, 0),
+            bc: col(&bd, 2),
+        }
+    };
+    let (_, bd) = zoh(&a, &b, dt);
+    let bm = if n > 1 { col(&bd, 1) } else { col(&bd, 0) };
+    let lin_p = prop(&a, &b, dt);
+    // backlash is piecewise linear: in contact the chain with a constant offset torque
+    // `-c g sign(x)` (exact under the hold), inside the gap the chain with that coupling
+    // removed (its own exact propagator). A sub-step whose end lies in another mode than
+    // its start is redone on MICRO finer steps, so the switching instant is resolved to
+    // 1/(substeps·MICRO) of a sample.
+    let modes = match nl {
+        Nl::Backlash { .. } if n > 1 => {
+            let mut open = plain.clone();
+            open.chain.stiffness_nm_per_rad[k] = 0.0;
+            open.chain.damping_nms_per_rad[k] = 0.0;
+            let (af, bf) = open.continuous(Some(k));
+            let dm = dt / MICRO as f64;
+            Some([prop(&af, &bf, dt), prop(&a, &b, dm), prop(&af, &bf, dm)])
+        }
+        _ => None,
+    };
+    let c = if n > 1 {
+        ch.stiffness_nm_per_rad[k]
     } else {
-        (0.0, 0.0)
+        0.0
     };
     let mut x: Vec<f64> = vec![0.0; ns];
     let mut xn: Vec<f64> = vec![0.0; ns];
+    let mut xt: Vec<f64> = vec![0.0; ns];
     let mut pos = Vec::with_capacity(u.len());
     let mut vel = Vec::with_capacity(u.len());
     let mut dsum = vec![0.0; n.saturating_sub(1)];
+    // hardening: the spring correction of the previous sub-step (second-order
+    // extrapolation of the held torque to the sub-step's middle)
+    let mut fc_prev = 0.0;
     for &uk in u {
         pos.push(x[0]);
         vel.push(x[n]);
@@ -80,32 +136,38 @@ pub fn simulate(lin: &LinExt, nl: Nl, u: &[f64], fs: f64, substeps: usize) -> Si
             *s += dx * dx;
         }
         for _ in 0..sub {
-            let fc = if n > 1 {
-                let (dx, dv) = (x[k + 1] - x[k], x[n + k + 1] - x[n + k]);
-                match nl {
-                    Nl::Backlash { g, .. } => {
+            match (nl, &modes) {
+                (Nl::Backlash { g, .. }, Some([free, lin_m, free_m])) => {
+                    let side = |x: &[f64]| {
+                        let dx = x[k + 1] - x[k];
                         if dx.abs() < g {
-                            -c * dx - d * dv
+                            0.0
                         } else {
-                            -c * g * dx.signum()
+                            dx.signum()
                         }
+                    };
+                    let s0 = side(&x);
+                    let p = if s0 == 0.0 { free } else { &lin_p };
+                    p.apply(&x, &mut xn, uk, -c * g * s0);
+                    if side(&xn) != s0 {
+                        xt.copy_from_slice(&x);
+                        for _ in 0..MICRO {
+                            let sj = side(&xt);
+                            let p = if sj == 0.0 { free_m } else { lin_m };
+                            p.apply(&xt, &mut xn, uk, -c * g * sj);
+                            std::mem::swap(&mut xt, &mut xn);
+                        }
+                        std::mem::swap(&mut xt, &mut xn);
                     }
-                    Nl::Hardening { xref, .. } => {
-                        let r = dx / xref;
-                        c * dx * r * r
-                    }
-                    _ => 0.0,
                 }
-            } else {
-                0.0
-            };
-            for r in 0..ns {
-                let row = &adv[r * ns..(r + 1) * ns];
-                let mut s = bu[r] * uk + bc[r] * fc;
-                for (a, xv) in row.iter().zip(&x) {
-                    s += a * xv;
+                (Nl::Hardening { xref, .. }, _) if n > 1 => {
+                    let dx = x[k + 1] - x[k];
+                    let r = dx / xref;
+                    let fc = c * dx * r * r;
+                    lin_p.apply(&x, &mut xn, uk, 1.5 * fc - 0.5 * fc_prev);
+                    fc_prev = fc;
                 }
-                xn[r] = s;
+                _ => lin_p.apply(&x, &mut xn, uk, 0.0),
             }
             if let Nl::Friction { tc } = nl {
                 let b = bm[n];
@@ -178,4 +240,100 @@ pub fn sim_frf(
     r.acceleration_rad_s2 = None;
     let e = estimate_frf(&r, band).ok()?;
     keep.iter().map(|&i| e.frf.h.get(i).copied()).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::Chain;
+    use crate::plant::{Backlash, Effects, Hardening, PlantSim, PlantSpec};
+
+    /// Motor velocity of the naive reference, the plant's RK4 of the full nonlinear
+    /// equations on 40 sub-steps, sampled like [`simulate`]'s (before each step).
+    fn reference(spec: &PlantSpec, u: &[f64], fs: f64) -> Vec<f64> {
+        let mut sim = PlantSim::new(spec, fs, 40, 1).unwrap();
+        u.iter()
+            .map(|&t| {
+                let v = sim.body_velocities()[0];
+                sim.step(t);
+                v
+            })
+            .collect()
+    }
+
+    fn rms_diff(a: &[f64], b: &[f64]) -> f64 {
+        (a.iter().zip(b).map(|(x, y)| (x - y).powi(2)).sum::<f64>() / a.len() as f64).sqrt()
+    }
+
+    /// The piecewise-exact backlash and the extrapolated hardening on 4 sub-steps against
+    /// the fine-step RK4 plant: the effect's change of the motor velocity is reproduced to
+    /// within 40 % in the time domain (the linear chain alone misses all of it; impacts make
+    /// the trajectories sensitive, the FRFs agree far closer).
+    #[test]
+    fn spring_nonlinearities_match_the_fine_step_plant() {
+        let fs = 2000.0;
+        let chain = Chain::new(
+            vec![3.6e-3, 5.1e-3, 17.2e-3],
+            vec![2.9e4, 171.0],
+            vec![0.47, 0.018],
+        )
+        .unwrap();
+        let u: Vec<f64> = (0..6000)
+            .map(|k| {
+                let t = k as f64 / fs;
+                [
+                    (7.0, 0.0),
+                    (37.0, 1.0),
+                    (211.0, 2.0),
+                    (411.0, 0.5),
+                    (587.0, 2.5),
+                ]
+                .iter()
+                .map(|(f, p)| 0.03 * (2.0 * std::f64::consts::PI * f * t + p).sin())
+                .sum()
+            })
+            .collect();
+        let lin = LinExt::nominal(chain.clone());
+        let plain = simulate(&lin, Nl::None, &u, fs, 4).vel;
+        let x = simulate(&lin, Nl::None, &u, fs, 4).defl_rms;
+        for (nl, effects) in [
+            (
+                Nl::Backlash { k: 0, g: x[0] },
+                Effects {
+                    backlash: Some(Backlash {
+                        coupling: 0,
+                        half_gap_rad: x[0],
+                    }),
+                    ..Effects::default()
+                },
+            ),
+            (
+                Nl::Hardening {
+                    k: 0,
+                    xref: 1.5 * x[0],
+                },
+                Effects {
+                    hardening_stiffness: Some(Hardening {
+                        coupling: 0,
+                        x_ref_rad: 1.5 * x[0],
+                    }),
+                    ..Effects::default()
+                },
+            ),
+        ] {
+            let spec = PlantSpec {
+                chain: chain.clone(),
+                effects,
+            };
+            let want = reference(&spec, &u, fs);
+            let got = simulate(&lin, nl, &u, fs, 4).vel;
+            let effect = rms_diff(&plain, &want);
+            let err = rms_diff(&got, &want);
+            println!("{nl:?}: effect {effect:.3e}, error {err:.3e} rad/s");
+            assert!(
+                effect > 0.0 && err < 0.4 * effect,
+                "{nl:?}: {err} vs {effect}"
+            );
+        }
+    }
 }

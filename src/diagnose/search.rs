@@ -46,6 +46,7 @@ fn search_1d(
     hi: f64,
     grid: usize,
     golden: usize,
+    curvature: bool,
     mut f: impl FnMut(f64) -> f64,
 ) -> (f64, f64, f64) {
     let (la, lb) = (lo.ln(), hi.ln());
@@ -58,6 +59,9 @@ fn search_1d(
         .unwrap();
     let (mut a, mut b) = (pts[ib.saturating_sub(1)], pts[(ib + 1).min(grid - 1)]);
     let mut best = (pts[ib], vals[ib]);
+    if golden == 0 {
+        return (best.0.exp(), best.1, f64::NAN);
+    }
     let gr = 0.618_033_988_75;
     let mut c = b - gr * (b - a);
     let mut d = a + gr * (b - a);
@@ -81,6 +85,9 @@ fn search_1d(
         if v < best.1 {
             best = (x, v);
         }
+    }
+    if !curvature {
+        return (best.0.exp(), best.1, f64::NAN);
     }
     // curvature from three points around the optimum
     let h = ((b - a).abs() * 0.5).max(0.02);
@@ -134,45 +141,73 @@ pub fn fit_nonlinear(
             lin = m;
         }
     }
-    let (mut p, _, mut sig) = search_1d(lo, hi, 7, 5, |p| chi2_of(data, &lin, make(p)));
+    let (mut p, _, mut sig) = search_1d(lo, hi, 6, 4, false, |p| chi2_of(data, &lin, make(p)));
     // alternate: correct the chain (the measurement with the simulated effect divided
     // out), then search again around the current value
     for round in 0..2 {
         let model = sim_model(data, &lin, make(p), true)?;
-        let targets: Vec<Target> = data
-            .levels
-            .iter()
-            .zip(&data.targets)
-            .zip(&model)
-            .map(|((l, t), ms)| {
-                let d = Discrete::new(&lin, data.fs, l.io_delay);
-                let h = t
-                    .idx
-                    .iter()
-                    .zip(&t.h)
-                    .map(|(&i, &h)| h * d.frf(l.f[i], data.kind) / ms[i])
-                    .collect();
-                Target { h, ..t.clone() }
-            })
-            .collect();
-        let mut start = lin.clone();
-        let k = if with_viscous {
-            start.motor_b = start
-                .motor_b
-                .max(1e-6 * start.chain.total_inertia() * data.f_min());
-            Lin::Viscous
-        } else {
-            Lin::None
-        };
-        if let Some((m, _)) = fit_linear(data, &targets, k, &start, 25) {
-            lin = m;
-        }
-        let w = if round == 0 { 3.0 } else { 1.6 };
-        let r = search_1d(p / w, p * w, 5, 4, |q| chi2_of(data, &lin, make(q)));
+        lin = correct_chain(data, &lin, &model, with_viscous);
+        let (w, grid) = if round == 0 { (3.0, 4) } else { (1.6, 3) };
+        let r = search_1d(p / w, p * w, grid, 3, round == 1, |q| {
+            chi2_of(data, &lin, make(q))
+        });
         p = r.0;
         sig = r.2;
     }
-    let model = sim_model(data, &lin, make(p), false)?;
+    finish(data, lin, make(p), effect, pname, p, sig, with_viscous)
+}
+
+/// The chain corrected for a simulated effect: refitted to the measurement with the
+/// effect divided out (`H_meas H_lin / H_sim`, `model` = `H_sim` on all lines).
+fn correct_chain(
+    data: &Data,
+    lin: &LinExt,
+    model: &[Vec<Complex64>],
+    with_viscous: bool,
+) -> LinExt {
+    let targets: Vec<Target> = data
+        .levels
+        .iter()
+        .zip(&data.targets)
+        .zip(model)
+        .map(|((l, t), ms)| {
+            let d = Discrete::new(lin, data.fs, l.io_delay);
+            let h = t
+                .idx
+                .iter()
+                .zip(&t.h)
+                .map(|(&i, &h)| h * d.frf(l.f[i], data.kind) / ms[i])
+                .collect();
+            Target { h, ..t.clone() }
+        })
+        .collect();
+    let mut start = lin.clone();
+    let k = if with_viscous {
+        start.motor_b = start
+            .motor_b
+            .max(1e-6 * start.chain.total_inertia() * data.f_min());
+        Lin::Viscous
+    } else {
+        Lin::None
+    };
+    fit_linear(data, &targets, k, &start, 25)
+        .map(|r| r.0)
+        .unwrap_or_else(|| lin.clone())
+}
+
+/// The identified effect: the full-length simulation on all lines, chi², parameters.
+#[allow(clippy::too_many_arguments)]
+fn finish(
+    data: &Data,
+    lin: LinExt,
+    nl: Nl,
+    effect: &'static str,
+    pname: &str,
+    p: f64,
+    sig: f64,
+    with_viscous: bool,
+) -> Option<EffectFit> {
+    let model = sim_model(data, &lin, nl, false)?;
     let chi2 = data.chi2(&model);
     let mut params = vec![Param {
         name: pname.into(),
@@ -189,7 +224,7 @@ pub fn fit_nonlinear(
     Some(EffectFit {
         effect,
         params,
-        added: if with_viscous { 2 } else { 2 },
+        added: 2,
         chi2,
         model,
         lin,

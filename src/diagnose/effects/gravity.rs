@@ -6,7 +6,10 @@
 use super::{finish_linear, fit_best_start, log_std, EffectFit, Lin, Param};
 use crate::diagnose::lti::LinExt;
 use crate::diagnose::Data;
+use crate::model::Chain;
 
+/// Identify gravity with the chain, started from `nominal` plus a grid of restoring
+/// stiffnesses and dampings.
 pub fn fit(data: &Data, nominal: &LinExt) -> Option<EffectFit> {
     let jt = nominal.chain.total_inertia();
     let w0 = 2.0 * std::f64::consts::PI * data.f_min();
@@ -21,18 +24,55 @@ pub fn fit(data: &Data, nominal: &LinExt) -> Option<EffectFit> {
         })
         .collect();
     let (m, r) = fit_best_start(data, Lin::Gravity, &starts, 80, 3)?;
+    Some(finish(data, m, &r))
+}
+
+/// Gravity started from a chain whose last body is far heavier (20x) than all the others
+/// together (an extra-body fit that found the ground): the bodies before it, its spring as
+/// the restoring stiffness. None when the last body is not such a ground.
+pub fn from_ground_body(data: &Data, chain: &Chain) -> Option<EffectFit> {
+    let n = chain.masses();
+    if n < 2 {
+        return None;
+    }
+    let je = chain.inertia_kgm2[n - 1];
+    let rest: f64 = chain.inertia_kgm2[..n - 1].iter().sum();
+    if !(je > 20.0 * rest) {
+        return None;
+    }
+    let body = Chain::new(
+        chain.inertia_kgm2[..n - 1].to_vec(),
+        chain.stiffness_nm_per_rad[..n - 2].to_vec(),
+        chain.damping_nms_per_rad[..n - 2].to_vec(),
+    )
+    .ok()?;
+    let k = chain.stiffness_nm_per_rad[n - 2];
+    let starts: Vec<LinExt> = [0.02, 0.1, 0.3]
+        .iter()
+        .map(|z| {
+            let mut s = LinExt::nominal(body.clone());
+            s.ground_k = k;
+            s.motor_b = 2.0 * z * (k * rest).sqrt();
+            s
+        })
+        .collect();
+    let (m, r) = fit_best_start(data, Lin::Gravity, &starts, 80, 1)?;
+    Some(finish(data, m, &r))
+}
+
+fn finish(data: &Data, m: LinExt, r: &crate::diagnose::lm::LmResult) -> EffectFit {
     let i0 = 3 * m.chain.masses() - 2;
     let p = vec![
         Param {
             name: "m_g_l_nm".into(),
             value: m.ground_k,
-            std: log_std(&r, i0, m.ground_k),
+            std: log_std(r, i0, m.ground_k),
         },
         Param {
             name: "damping_nms_per_rad".into(),
             value: m.motor_b,
-            std: log_std(&r, i0 + 1, m.motor_b),
+            std: log_std(r, i0 + 1, m.motor_b),
         },
     ];
-    Some(finish_linear(data, "gravity", m, p, 2))
+    finish_linear(data, "gravity", m, p, 2)
 }

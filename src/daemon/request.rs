@@ -157,30 +157,6 @@ pub fn parse_request(body: &[u8], axis: &AxisConfig) -> Result<SweepRequest, Req
             ),
         ));
     }
-    if amplitude_nm <= 0.0 {
-        return Err(RequestError::field("amplitude_nm", "must be > 0"));
-    }
-    if amplitude_nm > lim.peak_torque_nm {
-        return Err(RequestError::field(
-            "amplitude_nm",
-            format!(
-                "{amplitude_nm} N m is above the peak torque limit {} N m of axis {}",
-                lim.peak_torque_nm, axis.name
-            ),
-        ));
-    }
-    if duration_s <= 0.0 {
-        return Err(RequestError::field("duration_s", "must be > 0"));
-    }
-    if duration_s > lim.max_sweep_s {
-        return Err(RequestError::field(
-            "duration_s",
-            format!(
-                "{duration_s} s is above the longest sweep {} s of axis {}",
-                lim.max_sweep_s, axis.name
-            ),
-        ));
-    }
     if let Some(l) = levels_nm {
         if !l.iter().all(|&a| a > 0.0 && a <= lim.peak_torque_nm) {
             return Err(RequestError::field(
@@ -207,6 +183,30 @@ pub fn parse_request(body: &[u8], axis: &AxisConfig) -> Result<SweepRequest, Req
                 ),
             ));
         }
+    }
+    if amplitude_nm <= 0.0 {
+        return Err(RequestError::field("amplitude_nm", "must be > 0"));
+    }
+    if amplitude_nm > lim.peak_torque_nm {
+        return Err(RequestError::field(
+            "amplitude_nm",
+            format!(
+                "{amplitude_nm} N m is above the peak torque limit {} N m of axis {}",
+                lim.peak_torque_nm, axis.name
+            ),
+        ));
+    }
+    if duration_s <= 0.0 {
+        return Err(RequestError::field("duration_s", "must be > 0"));
+    }
+    if duration_s > lim.max_sweep_s {
+        return Err(RequestError::field(
+            "duration_s",
+            format!(
+                "{duration_s} s is above the longest sweep {} s of axis {}",
+                lim.max_sweep_s, axis.name
+            ),
+        ));
     }
     Ok(SweepRequest {
         excitation,

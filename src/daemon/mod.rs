@@ -13,6 +13,7 @@
 //! * [`store`]: the results store (atomic files, per-period fsynced recording,
 //!   `interrupted` after a crash);
 //! * [`service`], [`runner`], [`hub`]: the sweeps' life cycle and event fan-out;
+//! * [`two_level`]: the two-level sweep and the gap diagnosis after it;
 //! * [`api`]: the HTTP routes (axum); [`web`]: the embedded web page;
 //! * [`mqtt`], [`notify`], [`logging`]: MQTT, systemd notifications, journald;
 //! * [`server`]: start/stop ([`server::start`] with an injected shutdown, for tests).
@@ -34,6 +35,7 @@ pub mod service;
 pub mod sim_backend;
 pub mod store;
 pub mod token;
+pub mod two_level;
 pub mod web;
 
 pub use backend::{

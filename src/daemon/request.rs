@@ -6,6 +6,7 @@ use super::backend::SweepPlan;
 use super::config::AxisConfig;
 use crate::excitation::{
     band_lines, AmplitudeShape, ChirpDesign, ExcitationInfo, ExcitationKind, MultisineDesign,
+    PhaseDesign,
 };
 use serde_json::{Map, Value};
 
@@ -62,18 +63,29 @@ pub struct SweepRequest {
     pub periods: usize,
     /// Total duration [s] including the transient period, `0 < t <= limits.max_sweep_s`.
     pub duration_s: f64,
-    /// Two amplitude levels [N m] for a later gap diagnosis (each `0 < a <= peak`).
+    /// A two-level sweep: the peak torques `[low, high]` [N m] (`0 < low < high <= peak`).
+    /// The same excitation runs at the low then the high level (each a complete sweep),
+    /// then the gap diagnosis runs on the pair ([`crate::diagnose`]). `amplitude_nm` is then
+    /// the high level.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub levels_nm: Option<[f64; 2]>,
+    /// Bodies of the diagnosis's nominal chain (1..=8; two-level sweeps only). Default: the
+    /// number the identification of the high level found.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub masses: Option<usize>,
 }
 
-const FIELDS: [&str; 6] = [
+/// Seed of the odd random-phase multisine of two-level sweeps (the same signal every time).
+pub const TWO_LEVEL_SEED: u64 = 0x2_1e7e1;
+
+const FIELDS: [&str; 7] = [
     "excitation",
     "band_hz",
     "amplitude_nm",
     "periods",
     "duration_s",
     "levels_nm",
+    "masses",
 ];
 
 /// Parse and validate a request body for `axis`.
@@ -98,7 +110,12 @@ pub fn parse_request(body: &[u8], axis: &AxisConfig) -> Result<SweepRequest, Req
         }
     };
     let band = pair(&obj, "band_hz")?.ok_or_else(|| RequestError::field("band_hz", "missing"))?;
-    let amplitude_nm = number(&obj, "amplitude_nm")?;
+    let levels_nm = pair(&obj, "levels_nm")?;
+    // with levels, the amplitude is the high level (it may be omitted)
+    let amplitude_nm = match (obj.get("amplitude_nm"), levels_nm) {
+        (None, Some(l)) => l[1],
+        _ => number(&obj, "amplitude_nm")?,
+    };
     let periods = match obj.get("periods") {
         None => return Err(RequestError::field("periods", "missing")),
         Some(v) => match v.as_u64() {
@@ -112,7 +129,19 @@ pub fn parse_request(body: &[u8], axis: &AxisConfig) -> Result<SweepRequest, Req
         },
     };
     let duration_s = number(&obj, "duration_s")?;
-    let levels_nm = pair(&obj, "levels_nm")?;
+    let masses = match obj.get("masses") {
+        None | Some(Value::Null) => None,
+        Some(v) => match v.as_u64() {
+            Some(n) if (1..=8).contains(&n) => Some(n as usize),
+            _ => return Err(RequestError::field("masses", "must be an integer 1..=8")),
+        },
+    };
+    if masses.is_some() && levels_nm.is_none() {
+        return Err(RequestError::field(
+            "masses",
+            "only for a two-level sweep (give levels_nm)",
+        ));
+    }
 
     let nyq = axis.nyquist_hz();
     let lim = &axis.limits;
@@ -127,6 +156,33 @@ pub fn parse_request(body: &[u8], axis: &AxisConfig) -> Result<SweepRequest, Req
                 band[1], axis.name, axis.cycle_hz
             ),
         ));
+    }
+    if let Some(l) = levels_nm {
+        if !l.iter().all(|&a| a > 0.0 && a <= lim.peak_torque_nm) {
+            return Err(RequestError::field(
+                "levels_nm",
+                format!(
+                    "each level must be > 0 and at most the peak torque limit {} N m",
+                    lim.peak_torque_nm
+                ),
+            ));
+        }
+        if l[0] >= l[1] {
+            return Err(RequestError::field(
+                "levels_nm",
+                "need [low, high] with low < high",
+            ));
+        }
+        if amplitude_nm != l[1] {
+            return Err(RequestError::field(
+                "amplitude_nm",
+                format!(
+                    "a two-level sweep runs at levels_nm; amplitude_nm, when given, must be \
+                     the high level {} N m",
+                    l[1]
+                ),
+            ));
+        }
     }
     if amplitude_nm <= 0.0 {
         return Err(RequestError::field("amplitude_nm", "must be > 0"));
@@ -152,17 +208,6 @@ pub fn parse_request(body: &[u8], axis: &AxisConfig) -> Result<SweepRequest, Req
             ),
         ));
     }
-    if let Some(l) = levels_nm {
-        if !l.iter().all(|&a| a > 0.0 && a <= lim.peak_torque_nm) {
-            return Err(RequestError::field(
-                "levels_nm",
-                format!(
-                    "each level must be > 0 and at most the peak torque limit {} N m",
-                    lim.peak_torque_nm
-                ),
-            ));
-        }
-    }
     Ok(SweepRequest {
         excitation,
         band_hz: band,
@@ -170,6 +215,7 @@ pub fn parse_request(body: &[u8], axis: &AxisConfig) -> Result<SweepRequest, Req
         periods,
         duration_s,
         levels_nm,
+        masses,
     })
 }
 
@@ -237,6 +283,13 @@ pub fn plan(
             );
             d.crest_iterations = 10;
             d.amplitude = AmplitudeShape::PowerLaw { exponent: 1.0 };
+            if req.levels_nm.is_some() {
+                // detection lines: the diagnosis sees odd nonlinear distortion there
+                d.phases = PhaseDesign::OddRandom {
+                    seed: TWO_LEVEL_SEED,
+                    group: 3,
+                };
+            }
             let ms = d
                 .generate()
                 .map_err(|e| RequestError::field("band_hz", e.to_string()))?;
@@ -283,6 +336,30 @@ pub fn plan(
         info,
         levels_nm: req.levels_nm,
     })
+}
+
+/// The plans of a two-level sweep: the excitation planned at the high level, and the same
+/// signal scaled to the low level (its info's peak and RMS rescaled). One plan when the
+/// request has no levels.
+pub fn plan_levels(
+    req: &SweepRequest,
+    axis: &AxisConfig,
+    sweep_id: &str,
+) -> Result<Vec<SweepPlan>, RequestError> {
+    let Some([low, high]) = req.levels_nm else {
+        return Ok(vec![plan(req, axis, sweep_id)?]);
+    };
+    let hi_req = SweepRequest {
+        amplitude_nm: high,
+        ..req.clone()
+    };
+    let hi = plan(&hi_req, axis, sweep_id)?;
+    let scale = low / high;
+    let mut lo = hi.clone();
+    lo.torque_nm.iter_mut().for_each(|x| *x *= scale);
+    lo.info.peak_nm = lo.info.peak_nm.map(|p| p * scale);
+    lo.info.rms_nm = lo.info.rms_nm.map(|r| r * scale);
+    Ok(vec![lo, hi])
 }
 
 #[cfg(test)]
@@ -341,5 +418,34 @@ mod tests {
             assert!(p.torque_nm.iter().all(|x| x.abs() <= 1.5));
             assert!(!p.info.excited_lines.is_empty());
         }
+    }
+
+    #[test]
+    fn two_level_plans_scale_one_signal() {
+        let r = req(r#"{"excitation":"multisine","band_hz":[2,300],"levels_nm":[0.4,1.6],"periods":3,"duration_s":4}"#)
+            .unwrap();
+        assert_eq!(r.amplitude_nm, 1.6, "the amplitude is the high level");
+        let p = plan_levels(&r, &axis(), "x").unwrap();
+        assert_eq!(p.len(), 2);
+        let peak = |v: &[f64]| v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+        assert!((peak(&p[1].torque_nm) - 1.6).abs() < 1e-9);
+        assert!((peak(&p[0].torque_nm) - 0.4).abs() < 1e-9);
+        // the same signal: the low level is the high one scaled, sample by sample
+        for (lo, hi) in p[0].torque_nm.iter().zip(&p[1].torque_nm) {
+            assert!((lo * 4.0 - hi).abs() < 1e-12);
+        }
+        assert_eq!(p[0].info.excited_lines, p[1].info.excited_lines);
+        assert_eq!(p[1].info.design.as_deref(), Some("odd_random_phase"));
+        assert!((p[0].info.peak_nm.unwrap() - 0.4).abs() < 1e-9);
+        // one plan without levels
+        let one = req(r#"{"excitation":"chirp","band_hz":[2,300],"amplitude_nm":1,"periods":3,"duration_s":4}"#)
+            .unwrap();
+        assert_eq!(plan_levels(&one, &axis(), "x").unwrap().len(), 1);
+        let e = req(r#"{"excitation":"multisine","band_hz":[2,300],"levels_nm":[1,1],"periods":3,"duration_s":4}"#)
+            .unwrap_err();
+        assert_eq!(e.field.as_deref(), Some("levels_nm"));
+        let e = req(r#"{"excitation":"multisine","band_hz":[2,300],"levels_nm":[0.1,3],"periods":3,"duration_s":4}"#)
+            .unwrap_err();
+        assert_eq!(e.field.as_deref(), Some("levels_nm"));
     }
 }

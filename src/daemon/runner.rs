@@ -1,15 +1,16 @@
 //! The thread that follows one running sweep: streams every period's samples to disk,
 //! forwards progress and Bode estimates to the hub, and at the end analyses the recording,
-//! writes the results, publishes the model and frees the axis.
+//! writes the results, publishes the model and frees the axis. A two-level sweep is
+//! orchestrated by [`super::two_level`] with the same [`follow`] per level.
 
 use super::backend::{Outcome, SweepEvent};
 use super::hub::SweepHub;
 use super::service::Service;
 use super::store::{SweepFiles, SweepState, BODE_SVG, RESULT_JSON};
-use crate::analysis::{analyze, to_json, Analysis, AnalysisOptions};
+use crate::analysis::{analyze, to_json, Analysis, AnalysisOptions, ModelSummary};
 use crate::frf::Frf;
 use crate::plot::BodePlot;
-use crate::recording::Sidecar;
+use crate::recording::{Recording, Sidecar};
 use serde_json::{json, Value};
 use std::sync::Arc;
 use tokio::sync::mpsc;
@@ -24,20 +25,120 @@ pub(crate) struct Job {
     pub periods_total: usize,
     pub planned_s: f64,
     pub sample_rate_hz: f64,
+    /// A two-level sweep: what the runner needs to start the high level and diagnose.
+    pub two_level: Option<TwoLevel>,
+}
+
+pub(crate) use super::two_level::TwoLevel;
+
+/// What following one backend sweep to its end gave.
+pub(crate) struct Measured {
+    pub outcome: Outcome,
+    pub reason: String,
+    pub recording: Option<Recording>,
+    /// Rows on disk.
+    pub samples: usize,
+    /// Whether `result.json` holds an identified model.
+    pub has_model: bool,
+    /// The identified model, if any.
+    pub model: Option<ModelSummary>,
+    /// The `result` event's data for this sweep: `{"model", "notes"}` or `{"model": null,
+    /// "error"}`.
+    pub result: Value,
+    /// `result.json` as written (the analysis), if the analysis ran.
+    pub result_json: Option<Value>,
+}
+
+/// Where the events of one backend sweep go.
+pub(crate) struct Follow<'a> {
+    pub id: &'a str,
+    pub hub: &'a SweepHub,
+    pub files: &'a mut SweepFiles,
+    pub sample_rate_hz: f64,
+    pub periods_total: usize,
+    pub planned_s: f64,
+    /// Two-level sweeps: the level (1-based) and the periods of the levels before.
+    pub level: Option<usize>,
+    pub periods_before: usize,
 }
 
 /// Follow the sweep to its end (blocking; runs on its own thread).
 pub(crate) fn run(mut job: Job) {
+    if let Some(tl) = job.two_level.take() {
+        return super::two_level::run(job, tl);
+    }
     let status = job.hub.status();
     let (id, axis) = status
         .as_ref()
         .map(|s| (s.id.clone(), s.axis.clone()))
         .unwrap_or_default();
+    let m = follow(
+        Follow {
+            id: &id,
+            hub: &job.hub,
+            files: &mut job.files,
+            sample_rate_hz: job.sample_rate_hz,
+            periods_total: job.periods_total,
+            planned_s: job.planned_s,
+            level: None,
+            periods_before: 0,
+        },
+        &mut job.events,
+    );
+    if let (Some(m), Some(mqtt)) = (&m.model, &job.svc.mqtt) {
+        mqtt.publish(&axis, "model", &model_message(&id, &axis, m));
+    }
+    if let Some(rec) = &m.recording {
+        job.sidecar = rec.sidecar.clone();
+    }
+    job.sidecar.sample_rate_hz = Some(job.sample_rate_hz);
+    if m.outcome != Outcome::Completed {
+        job.sidecar.ended_because = Some(m.reason.clone());
+    }
+    job.hub.update(|s| {
+        s.state = SweepState::from(m.outcome);
+        s.reason = Some(m.reason.clone());
+        s.ended_unix_s = Some(super::store::unix_now());
+        s.samples = m.samples;
+        s.has_result = m.has_model;
+    });
+    if let Some(st) = job.hub.status() {
+        if let Err(e) = job.files.finish(&st, &job.sidecar) {
+            tracing::error!("sweep {id}: {e}");
+        }
+    }
+    if m.has_model {
+        job.svc.set_last_result(&axis, &id);
+    }
+    job.hub.publish("result", m.result.to_string());
+    job.hub.publish(
+        "ended",
+        json!({"sweep_id": id, "outcome": m.outcome, "reason": m.reason, "samples": m.samples})
+            .to_string(),
+    );
+    tracing::info!("axis {axis}: sweep {id} ended: {}", m.reason);
+    job.svc.release(&axis);
+}
+
+/// Follow one backend sweep to its end: stream its rows into `f.files`, forward progress
+/// and Bode estimates, then analyse the recording and write `result.json`, `frf.csv` and
+/// `bode.svg`. Does not finish the files.
+pub(crate) fn follow(f: Follow<'_>, events: &mut mpsc::Receiver<SweepEvent>) -> Measured {
+    let Follow {
+        id,
+        hub,
+        files,
+        sample_rate_hz,
+        periods_total,
+        planned_s,
+        level,
+        periods_before,
+    } = f;
     let mut samples = 0usize;
     let mut last_frf: Option<Arc<Frf>> = None;
     let mut store_failed: Option<String> = None;
     let ended = loop {
-        match job.events.blocking_recv() {
+        match events.blocking_recv() {
             Some(SweepEvent::Period {
                 index,
                 samples: block,
@@ -51,35 +152,38 @@ pub(crate) fn run(mut job: Job) {
                     Ok(())
                 } else {
                     samples = block.first_sample + block.torque_cmd_nm.len();
-                    job.files.append(&block, job.sample_rate_hz)
+                    files.append(&block, sample_rate_hz)
                 };
                 if let Err(e) = appended {
                     // the data cannot be kept: stop the motor rather than run blind
                     tracing::error!("sweep {id}: {e}; aborting");
-                    job.hub.abort.abort("results store failed");
+                    hub.abort.abort("results store failed");
                     store_failed.get_or_insert(e.to_string());
                 }
-                job.hub.update(|s| {
-                    s.periods_done = index + 1;
+                hub.update(|s| {
+                    s.periods_done = periods_before + index + 1;
                     s.samples = samples;
                 });
-                job.hub.publish(
-                    "progress",
-                    json!({
-                        "sweep_id": id,
-                        "period": index + 1,
-                        "periods_total": job.periods_total,
-                        "elapsed_s": elapsed_s,
-                        "planned_s": job.planned_s,
-                        "samples": samples,
-                        "counters": counters,
-                    })
-                    .to_string(),
-                );
+                let mut p = json!({
+                    "sweep_id": id,
+                    "period": periods_before + index + 1,
+                    "periods_total": periods_total,
+                    "elapsed_s": elapsed_s,
+                    "planned_s": planned_s,
+                    "samples": samples,
+                    "counters": counters,
+                });
+                if let Some(n) = level {
+                    p["level"] = n.into();
+                }
+                hub.publish("progress", p.to_string());
                 if let Some(frf) = frf_so_far {
-                    let _ = job.files.write_frf(&frf);
-                    job.hub
-                        .publish("bode", bode_json(&frf, index + 1).to_string());
+                    let _ = files.write_frf(&frf);
+                    let mut b = bode_json(&frf, index + 1);
+                    if let Some(n) = level {
+                        b["level"] = n.into();
+                    }
+                    hub.publish("bode", b.to_string());
                     last_frf = Some(frf);
                 }
             }
@@ -108,7 +212,7 @@ pub(crate) fn run(mut job: Job) {
                     torque_cmd_nm: rec.torque_cmd_nm[samples..n].to_vec(),
                     position_rad: pos[samples..n].to_vec(),
                 };
-                match job.files.append(&block, job.sample_rate_hz) {
+                match files.append(&block, sample_rate_hz) {
                     Ok(()) => samples = n,
                     Err(e) => tracing::error!("sweep {id}: {e}"),
                 }
@@ -119,68 +223,49 @@ pub(crate) fn run(mut job: Job) {
         reason = format!("{reason} (results store: {e})");
     }
     // analyse what was measured (also a partial recording: it may still hold periods)
-    let mut result: Value = json!({"model": null});
-    let mut has_model = false;
+    let mut m = Measured {
+        outcome,
+        reason,
+        recording: None,
+        samples,
+        has_model: false,
+        model: None,
+        result: json!({"model": null}),
+        result_json: None,
+    };
     if let Some(rec) = &recording {
-        job.sidecar = rec.sidecar.clone();
         match analyze(rec, &AnalysisOptions::default()) {
             Ok(an) => {
                 let j = to_json(&an);
-                has_model = an.model.is_some();
+                m.has_model = an.model.is_some();
                 if let Ok(text) = serde_json::to_string_pretty(&j) {
-                    let _ = job.files.write_file(RESULT_JSON, text.as_bytes());
+                    let _ = files.write_file(RESULT_JSON, text.as_bytes());
                 }
-                let _ = job.files.write_frf(&an.measured.frf);
-                write_bode(&job.files, &an, &id);
-                result = json!({
+                let _ = files.write_frf(&an.measured.frf);
+                write_bode(files, &an, id);
+                m.result = json!({
                     "model": an.model,
                     "model_bode": an.model_frf.as_ref().map(model_bode_json),
                     "notes": an.notes,
                 });
-                if let (Some(m), Some(mqtt)) = (&an.model, &job.svc.mqtt) {
-                    mqtt.publish(&axis, "model", &model_message(&id, &axis, m));
-                }
+                m.result_json = Some(j);
+                m.model = an.model.clone();
             }
             Err(e) => {
-                result = json!({"model": null, "error": e.to_string()});
+                m.result = json!({"model": null, "error": e.to_string()});
                 if let Some(frf) = &last_frf {
                     if let Ok(svg) = BodePlot::new(frf)
                         .title(format!("sweep {id} (no model)"))
                         .render_svg()
                     {
-                        let _ = job.files.write_file(BODE_SVG, svg.as_bytes());
+                        let _ = files.write_file(BODE_SVG, svg.as_bytes());
                     }
                 }
             }
         }
     }
-    job.sidecar.sample_rate_hz = Some(job.sample_rate_hz);
-    if outcome != Outcome::Completed {
-        job.sidecar.ended_because = Some(reason.clone());
-    }
-    job.hub.update(|s| {
-        s.state = SweepState::from(outcome);
-        s.reason = Some(reason.clone());
-        s.ended_unix_s = Some(super::store::unix_now());
-        s.samples = samples;
-        s.has_result = has_model;
-    });
-    if let Some(st) = job.hub.status() {
-        if let Err(e) = job.files.finish(&st, &job.sidecar) {
-            tracing::error!("sweep {id}: {e}");
-        }
-    }
-    if has_model {
-        job.svc.set_last_result(&axis, &id);
-    }
-    job.hub.publish("result", result.to_string());
-    job.hub.publish(
-        "ended",
-        json!({"sweep_id": id, "outcome": outcome, "reason": reason, "samples": samples})
-            .to_string(),
-    );
-    tracing::info!("axis {axis}: sweep {id} ended: {reason}");
-    job.svc.release(&axis);
+    m.recording = recording;
+    m
 }
 
 /// The `bode` event: the estimate after `period` periods.

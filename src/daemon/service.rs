@@ -5,7 +5,7 @@ use super::backend::{AxisBackend, BackendError};
 use super::config::Config;
 use super::hub::SweepHub;
 use super::mqtt::Mqtt;
-use super::request::{parse_request, plan, RequestError};
+use super::request::{parse_request, plan_levels, RequestError};
 use super::runner;
 use super::store::{new_sweep_id, unix_now, Store, SweepState, SweepStatus};
 use super::token::Token;
@@ -171,9 +171,12 @@ impl Service {
         }
         let id = new_sweep_id();
         let (req2, ax2, id2) = (req.clone(), ax.clone(), id.clone());
-        let plan = tokio::task::spawn_blocking(move || plan(&req2, &ax2, &id2))
+        let mut plans = tokio::task::spawn_blocking(move || plan_levels(&req2, &ax2, &id2))
             .await
             .map_err(|e| ServiceError::Internal(e.to_string()))??;
+        // a two-level sweep starts with the low level; the runner starts the high one
+        let plan = plans.remove(0);
+        let two_level = req.levels_nm.is_some();
         // reserve the axis (a concurrent request may have won meanwhile)
         {
             let mut g = self.axes.lock().unwrap_or_else(|e| e.into_inner());
@@ -198,6 +201,8 @@ impl Service {
             samples: 0,
             request: req,
             has_result: false,
+            level: two_level.then_some(1),
+            has_diagnosis: false,
         };
         let sidecar = crate::recording::Sidecar {
             sample_rate_hz: Some(plan.sample_rate_hz),
@@ -211,7 +216,12 @@ impl Service {
                 return Err(e.into());
             }
         };
-        let planned = (plan.total_periods(), plan.duration_s(), plan.sample_rate_hz);
+        let levels = 1 + plans.len();
+        let planned = (
+            plan.total_periods() * levels,
+            plan.duration_s() * levels as f64,
+            plan.sample_rate_hz,
+        );
         let handle = match self.backend.start(&ax, plan) {
             Ok(h) => h,
             Err(e) => {
@@ -248,6 +258,12 @@ impl Service {
             periods_total: planned.0,
             planned_s: planned.1,
             sample_rate_hz: planned.2,
+            two_level: two_level.then(|| runner::TwoLevel {
+                axis: ax.clone(),
+                next: plans,
+                levels_nm: status.request.levels_nm.unwrap_or_default(),
+                masses: status.request.masses,
+            }),
         };
         let t = std::thread::Builder::new()
             .name(format!("sweep-{axis}"))

@@ -1,5 +1,6 @@
 //! A simulated [`AxisBackend`]: the plan's torque drives a chain (exact ZOH state space,
-//! torque noise, encoder quantisation) on a thread of its own, in real time
+//! torque noise, encoder quantisation; or, for a plant file with an `[effects]` section,
+//! [`crate::plant::PlantSim`] with every effect) on a thread of its own, in real time
 //! (`clock = "monotonic"`) or as fast as possible (`clock = "simulated"`), with the same
 //! events, limits and abort behaviour the drive backend has.
 
@@ -10,6 +11,7 @@ use super::backend::{
 use super::config::{AxisConfig, ClockKind};
 use crate::frf::{differenced_velocity_into, FrfKind, PeriodicEstimator};
 use crate::model::{Chain, StateSpace};
+use crate::plant::PlantSim;
 use crate::recording::{Recording, Sidecar};
 use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
@@ -30,6 +32,10 @@ pub struct SimBackend {
     pub encoder_counts_per_rev: Option<u64>,
     /// Name of the plant, for the sidecar's `source`.
     pub name: String,
+    /// The plant with its unmodelled effects (noise and encoder folded in) and the RK4
+    /// sub-steps per cycle: simulated by [`crate::plant::PlantSim`] instead of the exact
+    /// linear chain. `None`: the linear chain.
+    pub effects: Option<(crate::plant::PlantSpec, u32)>,
 }
 
 impl SimBackend {
@@ -44,6 +50,7 @@ impl SimBackend {
             torque_noise_nm: 0.0,
             encoder_counts_per_rev: None,
             name: name.into(),
+            effects: None,
         })
     }
 
@@ -51,10 +58,13 @@ impl SimBackend {
     /// torque noise and encoder.
     pub fn from_plant_file(path: Option<&std::path::Path>) -> Result<Self, String> {
         let p = crate::cli::plant::PlantFile::load(path)?;
-        let mut b = SimBackend::new(p.chain, p.name.as_deref().unwrap_or("plant file"))
+        let mut b = SimBackend::new(p.chain.clone(), p.name.as_deref().unwrap_or("plant file"))
             .map_err(|e| e.to_string())?;
         b.torque_noise_nm = p.measurement.torque_noise_nm;
         b.encoder_counts_per_rev = p.measurement.encoder_counts_per_rev;
+        if p.has_effects() {
+            b.effects = Some((p.spec(), p.substeps()));
+        }
         Ok(b)
     }
 }
@@ -81,6 +91,17 @@ impl AxisBackend for SimBackend {
             reason: e.to_string(),
         })?
         .with_transient_periods(plan.info.transient_periods);
+        let nonlinear = match &self.effects {
+            None => None,
+            Some((spec, substeps)) => Some(Box::new(
+                PlantSim::new(spec, plan.sample_rate_hz, *substeps, 0x5eed).map_err(|e| {
+                    BackendError::Plan {
+                        axis: axis.name.clone(),
+                        reason: format!("simulated plant: {e}"),
+                    }
+                })?,
+            )),
+        };
         let (tx, rx) = mpsc::channel(256);
         let abort = AbortSignal::default();
         let run = Run {
@@ -90,6 +111,7 @@ impl AxisBackend for SimBackend {
             abort: abort.clone(),
             tx,
             est,
+            nonlinear,
         };
         std::thread::Builder::new()
             .name(format!("sim-{}", axis.name))
@@ -109,6 +131,8 @@ struct Run {
     abort: AbortSignal,
     tx: mpsc::Sender<SweepEvent>,
     est: PeriodicEstimator,
+    /// The plant with effects, when the plant file has any (else the linear chain).
+    nonlinear: Option<Box<PlantSim>>,
 }
 
 impl Run {
@@ -162,27 +186,36 @@ impl Run {
                 self.plan.torque_nm[k]
             };
             // sample, then apply the torque over the cycle (ZOH)
-            let mut p = x[0];
-            if let Some(q) = quantum {
-                p = (p / q).round() * q;
-            }
+            let p = match &self.nonlinear {
+                Some(sim) => sim.sample().position_rad,
+                None => match quantum {
+                    Some(q) => (x[0] / q).round() * q,
+                    None => x[0],
+                },
+            };
             rec_t.push(k as f64 * ts);
             rec_u.push(u);
             rec_p.push(p);
-            let mut ua = u;
-            if self.sim.torque_noise_nm > 0.0 {
-                if let Some(unit) = &unit {
-                    ua += self.sim.torque_noise_nm * unit.sample(&mut rng);
+            if let Some(sim) = self.nonlinear.as_mut() {
+                sim.step(u);
+                x[0] = sim.body_positions()[0];
+                x[n] = sim.body_velocities()[0];
+            } else {
+                let mut ua = u;
+                if self.sim.torque_noise_nm > 0.0 {
+                    if let Some(unit) = &unit {
+                        ua += self.sim.torque_noise_nm * unit.sample(&mut rng);
+                    }
                 }
-            }
-            for (i, nx) in next.iter_mut().enumerate() {
-                let mut acc = d.bd[i] * ua;
-                for (j, xj) in x.iter().enumerate() {
-                    acc += d.ad[(i, j)] * xj;
+                for (i, nx) in next.iter_mut().enumerate() {
+                    let mut acc = d.bd[i] * ua;
+                    for (j, xj) in x.iter().enumerate() {
+                        acc += d.ad[(i, j)] * xj;
+                    }
+                    *nx = acc;
                 }
-                *nx = acc;
+                std::mem::swap(&mut x, &mut next);
             }
-            std::mem::swap(&mut x, &mut next);
             counters.cycles += 1;
             k += 1;
             if stop.is_none() {

@@ -10,6 +10,8 @@
 //! | `status.json` | at the end: outcome, reason, times |
 //! | `result.json` | at the end: the analysis as `flexid identify --json` writes it |
 //! | `bode.svg` | at the end |
+//! | `diagnosis.json` | two-level sweeps, at the end: the gap diagnosis (or `{"error"}`) |
+//! | `level1/`, `level2/` | two-level sweeps: each level's own `running`, `recording.*`, `frf.csv`, `status.json`, `result.json`, `bode.svg`; the top-level `recording.csv`, `frf.csv`, `bode.svg` are copied from the last level measured |
 //!
 //! Every file except `recording.csv` is replaced atomically (temporary file, fsync,
 //! rename, fsync of the directory).
@@ -85,6 +87,12 @@ pub struct SweepStatus {
     /// Whether `result.json` holds an identified model.
     #[serde(default)]
     pub has_result: bool,
+    /// Two-level sweeps: the level (1 = low, 2 = high) measured now or last.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub level: Option<usize>,
+    /// Two-level sweeps: whether `diagnosis.json` holds a diagnosis.
+    #[serde(default)]
+    pub has_diagnosis: bool,
 }
 
 /// Seconds since the Unix epoch.
@@ -141,6 +149,12 @@ pub const RECORDING_JSON: &str = "recording.json";
 pub const FRF_CSV: &str = "frf.csv";
 pub const RESULT_JSON: &str = "result.json";
 pub const BODE_SVG: &str = "bode.svg";
+pub const DIAGNOSIS_JSON: &str = "diagnosis.json";
+
+/// The sub-directory of level `n` (1-based) of a two-level sweep.
+pub fn level_dir_name(n: usize) -> String {
+    format!("level{n}")
+}
 
 impl Store {
     /// Open (create) the store at `root`.
@@ -207,6 +221,15 @@ impl Store {
                     Ok(st) => out.push(st),
                     Err(e) => tracing::error!("recovering {}: {e}", s.path().display()),
                 }
+                // the levels of a two-level sweep
+                for n in 1..=2 {
+                    let d = s.path().join(level_dir_name(n));
+                    if d.join(RUNNING).exists() {
+                        if let Err(e) = self.recover_one(&d) {
+                            tracing::error!("recovering {}: {e}", d.display());
+                        }
+                    }
+                }
             }
         }
         out
@@ -241,7 +264,16 @@ impl Store {
     /// Begin a sweep: create its directory, write the marker, the request and the sidecar,
     /// and open the recording for appending.
     pub fn begin(&self, status: &SweepStatus, sidecar: &Sidecar) -> Result<SweepFiles, StoreError> {
-        let dir = self.dir(&status.axis, &status.id);
+        self.begin_in(self.dir(&status.axis, &status.id), status, sidecar)
+    }
+
+    /// [`begin`](Self::begin) in another directory (the levels of a two-level sweep).
+    pub fn begin_in(
+        &self,
+        dir: PathBuf,
+        status: &SweepStatus,
+        sidecar: &Sidecar,
+    ) -> Result<SweepFiles, StoreError> {
         fs::create_dir_all(&dir).map_err(io_err(&dir))?;
         write_json(&dir.join(RUNNING), status)?;
         write_json(&dir.join(REQUEST), &status.request)?;

@@ -4,7 +4,7 @@ use super::ApiError;
 use crate::daemon::service::Service;
 use crate::daemon::store::{self, valid_sweep_id};
 use axum::body::Bytes;
-use axum::extract::{Path, State};
+use axum::extract::{Path, Query, State};
 use axum::http::{header, StatusCode};
 use axum::response::{IntoResponse, Response};
 use axum::Json;
@@ -77,36 +77,72 @@ pub async fn abort(State(svc): Svc, Path(id): Path<String>) -> Result<Response, 
         .into_response())
 }
 
-/// `GET /api/v1/sweeps/{id}/recording.csv`.
-pub async fn recording_csv(s: Svc, id: Path<String>) -> Result<Response, ApiError> {
-    sweep_file(s, id, store::RECORDING_CSV, "text/csv").await
+/// `?level=N` on the file routes: the file of level N (1 = low, 2 = high) of a two-level
+/// sweep instead of the top-level one.
+#[derive(Debug, Default, serde::Deserialize)]
+pub struct LevelQuery {
+    pub level: Option<usize>,
 }
 
-/// `GET /api/v1/sweeps/{id}/recording.json`.
-pub async fn recording_json(s: Svc, id: Path<String>) -> Result<Response, ApiError> {
-    sweep_file(s, id, store::RECORDING_JSON, "application/json").await
+/// `GET /api/v1/sweeps/{id}/recording.csv[?level=N]`.
+pub async fn recording_csv(
+    s: Svc,
+    id: Path<String>,
+    q: Query<LevelQuery>,
+) -> Result<Response, ApiError> {
+    sweep_file(s, id, q.0.level, store::RECORDING_CSV, "text/csv").await
 }
 
-/// `GET /api/v1/sweeps/{id}/frf.csv`.
-pub async fn frf_csv(s: Svc, id: Path<String>) -> Result<Response, ApiError> {
-    sweep_file(s, id, store::FRF_CSV, "text/csv").await
+/// `GET /api/v1/sweeps/{id}/recording.json[?level=N]`.
+pub async fn recording_json(
+    s: Svc,
+    id: Path<String>,
+    q: Query<LevelQuery>,
+) -> Result<Response, ApiError> {
+    sweep_file(s, id, q.0.level, store::RECORDING_JSON, "application/json").await
 }
 
-/// `GET /api/v1/sweeps/{id}/bode.svg`.
-pub async fn bode_svg(s: Svc, id: Path<String>) -> Result<Response, ApiError> {
-    sweep_file(s, id, store::BODE_SVG, "image/svg+xml").await
+/// `GET /api/v1/sweeps/{id}/frf.csv[?level=N]`.
+pub async fn frf_csv(s: Svc, id: Path<String>, q: Query<LevelQuery>) -> Result<Response, ApiError> {
+    sweep_file(s, id, q.0.level, store::FRF_CSV, "text/csv").await
+}
+
+/// `GET /api/v1/sweeps/{id}/bode.svg[?level=N]`.
+pub async fn bode_svg(
+    s: Svc,
+    id: Path<String>,
+    q: Query<LevelQuery>,
+) -> Result<Response, ApiError> {
+    sweep_file(s, id, q.0.level, store::BODE_SVG, "image/svg+xml").await
+}
+
+/// `GET /api/v1/sweeps/{id}/diagnosis`: the gap diagnosis of a two-level sweep
+/// (`diagnosis.json`: the report, or `{"error"}` when the diagnosis failed); 404 before it
+/// is done or for a one-level sweep.
+pub async fn diagnosis(s: Svc, id: Path<String>) -> Result<Response, ApiError> {
+    sweep_file(s, id, None, store::DIAGNOSIS_JSON, "application/json").await
 }
 
 async fn sweep_file(
     State(svc): Svc,
     Path(id): Path<String>,
+    level: Option<usize>,
     name: &str,
     mime: &'static str,
 ) -> Result<Response, ApiError> {
     check_id(&id)?;
-    let dir = svc
+    let mut dir = svc
         .sweep_dir(&id)
         .ok_or_else(|| ApiError::new(StatusCode::NOT_FOUND, format!("no sweep with id {id:?}")))?;
+    if let Some(n) = level {
+        if !(1..=2).contains(&n) {
+            return Err(ApiError::new(
+                StatusCode::UNPROCESSABLE_ENTITY,
+                format!("level {n}: a two-level sweep has levels 1 (low) and 2 (high)"),
+            ));
+        }
+        dir = dir.join(store::level_dir_name(n));
+    }
     match tokio::fs::read(dir.join(name)).await {
         Ok(bytes) => Ok(([(header::CONTENT_TYPE, mime)], bytes).into_response()),
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => Err(ApiError::new(

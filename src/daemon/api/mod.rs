@@ -31,6 +31,7 @@ pub const ROUTES: &[(&str, &str)] = &[
     ("get", "/api/v1/sweeps/{id}/recording.json"),
     ("get", "/api/v1/sweeps/{id}/frf.csv"),
     ("get", "/api/v1/sweeps/{id}/bode.svg"),
+    ("get", "/api/v1/sweeps/{id}/diagnosis"),
 ];
 
 /// The router over `svc`.
@@ -46,6 +47,7 @@ pub fn router(svc: Arc<Service>) -> Router {
         .route("/api/v1/sweeps/{id}/recording.json", get(h::recording_json))
         .route("/api/v1/sweeps/{id}/frf.csv", get(h::frf_csv))
         .route("/api/v1/sweeps/{id}/bode.svg", get(h::bode_svg))
+        .route("/api/v1/sweeps/{id}/diagnosis", get(h::diagnosis))
         .fallback(|| async { ApiError::new(StatusCode::NOT_FOUND, "no such route") })
         .layer(axum::extract::DefaultBodyLimit::max(BODY_LIMIT))
         .layer(tower_http::limit::RequestBodyLimitLayer::new(BODY_LIMIT))

@@ -1,5 +1,5 @@
 //! `GET /api/v1/sweeps/{id}/events`: server-sent events `progress`, `bode`, `result`,
-//! `ended`. A live sweep replays its history and then streams; a stored sweep (e.g. after a
+//! `ended` (two-level sweeps also `level` and `diagnosis`). A live sweep replays its history and then streams; a stored sweep (e.g. after a
 //! restart) sends `result` (if any) and `ended` from its files. The stream closes after
 //! `ended`.
 
@@ -62,12 +62,28 @@ pub async fn events(
             .sweep_dir(&id)
             .and_then(|d| std::fs::read_to_string(d.join(store::RESULT_JSON)).ok())
             .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok());
-        let model = result
-            .as_ref()
-            .map_or(serde_json::Value::Null, |r| r["model"].clone());
+        let field = |k: &str| {
+            result
+                .as_ref()
+                .and_then(|r| r.get(k).cloned())
+                .unwrap_or(serde_json::Value::Null)
+        };
+        let mut data = json!({"model": field("model")});
+        // a two-level sweep: its levels and the diagnosis
+        if !field("levels").is_null() {
+            let diagnosis = field("diagnosis");
+            if !diagnosis.is_null() {
+                evs.push(HubEvent {
+                    name: "diagnosis",
+                    data: diagnosis.to_string(),
+                });
+            }
+            data["levels"] = field("levels");
+            data["diagnosis"] = diagnosis;
+        }
         evs.push(HubEvent {
             name: "result",
-            data: json!({"model": model}).to_string(),
+            data: data.to_string(),
         });
         evs.push(HubEvent {
             name: "ended",

@@ -8,7 +8,6 @@
 //! Prints `flexid-vdrive: node N ready on BUS` on stdout once the boot-up frame is sent;
 //! exits 0 on SIGTERM/SIGINT, 2 on bad arguments or a bad plant file, 1 on a bus failure.
 
-use std::net::IpAddr;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, Ordering};

@@ -54,6 +54,13 @@ cargo build --release --workspace --all-targets
 step "unit and integration tests"
 cargo test --release --workspace 2>&1 | tee target/test-output.txt
 # (cargo's own summary lines above are what CI reads)
+# The browser test's screenshot of the live Bode page (tests/daemon_web.rs):
+if [ -s target/browser/bode-live.png ]; then
+    echo "screenshot of the live Bode page: $(pwd)/target/browser/bode-live.png ($(stat -c %s target/browser/bode-live.png) bytes)"
+elif [ "${CI:-}" = "true" ]; then
+    echo "test: the browser test left no screenshot (target/browser/bode-live.png)" >&2
+    exit 1
+fi
 
 # Tests that need a real SocketCAN interface: run with FLEXID_VCAN=vcan0 inside a small
 # qemu VM (scripts/vcan-vm.sh: this kernel has no vcan), on the release build above. One

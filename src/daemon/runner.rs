@@ -178,12 +178,14 @@ pub(crate) fn follow(f: Follow<'_>, events: &mut mpsc::Receiver<SweepEvent>) -> 
                 }
                 hub.publish("progress", p.to_string());
                 if let Some(frf) = frf_so_far {
-                    let _ = files.write_frf(&frf);
                     let mut b = bode_json(&frf, index + 1);
                     if let Some(n) = level {
                         b["level"] = n.into();
                     }
+                    // published before frf.csv is replaced (a file write and fsync): the
+                    // estimate is in memory, the rows are already on disk
                     hub.publish("bode", b.to_string());
+                    let _ = files.write_frf(&frf);
                     last_frf = Some(frf);
                 }
             }

@@ -230,3 +230,37 @@ fn finish(
         lin,
     })
 }
+
+/// A nonlinear effect of one coupling (backlash, hardening): [`fit_nonlinear`] on each
+/// coupling `k`, its parameter searched in `[lo, hi] x` the coupling's RMS deflection
+/// (at the lowest level when `lowest_level`, else the highest); the best fit, with the
+/// coupling index added as a parameter.
+#[allow(clippy::too_many_arguments)]
+pub fn fit_per_coupling(
+    data: &Data,
+    nominal: &LinExt,
+    lowest_level: bool,
+    effect: &'static str,
+    pname: &str,
+    lo: f64,
+    hi: f64,
+    make: impl Fn(usize, f64) -> Nl,
+) -> Option<EffectFit> {
+    let mut best: Option<EffectFit> = None;
+    for k in 0..nominal.chain.masses().saturating_sub(1) {
+        let x = data.deflection_rms(nominal, k, lowest_level);
+        if !(x > 0.0) {
+            continue;
+        }
+        let Some(mut e) = fit_nonlinear(data, nominal, effect, pname, lo * x, hi * x, false, |v| {
+            make(k, v)
+        }) else {
+            continue;
+        };
+        e.params.push(EffectFit::param("coupling", k as f64, 0.0));
+        if best.as_ref().is_none_or(|b| e.chi2 < b.chi2) {
+            best = Some(e);
+        }
+    }
+    best
+}

@@ -118,7 +118,10 @@ pub struct ChainFit {
 /// `opts.starts - 1` random perturbations of it.
 ///
 /// Coarse to fine: with many lines (at least `2 COARSE_LINES`), every start first runs on
-/// every `k`-th line only (about `COARSE_LINES` lines, loose tolerances); starts that reach
+/// every `k`-th line only (about `COARSE_LINES` lines, loose tolerances), in waves of `WAVE`
+/// starts after the first; a start that enters the basin of a coarse optimum of an earlier
+/// wave stops and counts for it, and one that converges to an optimum more than `HOPELESS`
+/// times worse than the best known is abandoned (see `run_coarse`); starts that reach
 /// the same coarse optimum (all log-parameters within `SAME_OPTIMUM`) are one candidate,
 /// candidates whose coarse cost is more than `HOPELESS` times the best are dropped, and
 /// only the remaining candidates are refined on all lines with the full tolerances. The
@@ -162,9 +165,28 @@ pub(super) fn fit_chain_coarse(
             gtol: 1e-8,
             ..full_lm
         };
-        let first = par_map(&starts, threads, |t| {
-            run_one(&coarse, t.as_slice(), &coarse_lm)
-        });
+        // waves: the first start alone, then WAVE at a time, each seeing the coarse optima
+        // of the earlier waves
+        let mut first: Vec<Result<StartRun, String>> = Vec::with_capacity(starts.len());
+        let mut known: Vec<(Vec<f64>, f64)> = Vec::new();
+        let mut next = 0;
+        while next < starts.len() {
+            let wave = if next == 0 {
+                1
+            } else {
+                WAVE.min(starts.len() - next)
+            };
+            let out = par_map(&starts[next..next + wave], threads, |t| {
+                run_coarse(&coarse, t.as_slice(), &coarse_lm, &known)
+            });
+            for r in out.iter().flatten() {
+                if !r.abandoned && !known.iter().any(|k| same_optimum(&k.0, &r.theta)) {
+                    known.push((r.theta.clone(), r.cost));
+                }
+            }
+            first.extend(out);
+            next += wave;
+        }
         let mut ok: Vec<&StartRun> = Vec::with_capacity(first.len());
         for r in &first {
             match r {
@@ -414,6 +436,77 @@ struct StartRun {
     cost: f64,
     theta: Vec<f64>,
     evals: usize,
+    /// Abandoned on the way to an optimum hopelessly worse than the best one known.
+    abandoned: bool,
+}
+
+/// Starts of the coarse phase run in waves of this many (after the first start alone), each
+/// start seeing the optima of the earlier waves. Fixed, so that the result does not depend
+/// on the number of threads.
+const WAVE: usize = 4;
+/// A coarse start within this of a known coarse optimum in every log-parameter (1 %) ...
+const MERGE_RADIUS: f64 = 1e-2;
+/// ... with a cost at most this much above its cost (relative; and not below it) is in its
+/// basin, practically converged: it is counted for that optimum and stops.
+const MERGE_COST: f64 = 1e-2;
+/// A coarse start still above `HOPELESS` times the best known coarse optimum after at least
+/// this many evaluations ...
+const ABANDON_EVALS: usize = 10;
+/// ... whose last accepted step reduced the cost by less than this (relative) is converging
+/// to a worse optimum (at that rate it would not get within `HOPELESS` of the best in its
+/// whole budget): it is abandoned.
+const ABANDON_REDUCTION: f64 = 1e-3;
+
+/// A start of the coarse phase: [`run_one`] that stops early against the `known` optima of
+/// earlier starts (`(theta, cost)`): as soon as it is in the basin of one of them
+/// (`MERGE_RADIUS`, `MERGE_COST`; it then reports that optimum), or when it is converging
+/// to an optimum more than `HOPELESS` times worse than the best of them (`ABANDON_EVALS`,
+/// `ABANDON_REDUCTION`; reported as abandoned).
+fn run_coarse(
+    data: &FitData,
+    theta: &[f64],
+    lm_opts: &LmOptions,
+    known: &[(Vec<f64>, f64)],
+) -> Result<StartRun, String> {
+    let near = |t: &[f64], c: f64| {
+        known.iter().position(|(kt, kc)| {
+            c >= *kc
+                && c <= kc * (1.0 + MERGE_COST)
+                && kt.iter().zip(t).all(|(a, b)| (a - b).abs() < MERGE_RADIUS)
+        })
+    };
+    let best = known.iter().map(|k| k.1).fold(f64::INFINITY, f64::min);
+    let hopeless = |c: f64, prev: f64, evals: usize| {
+        evals >= ABANDON_EVALS && c > HOPELESS * best && prev - c < ABANDON_REDUCTION * prev
+    };
+    let mut problem = ChainProblem::unset(data);
+    let mut ws = LmWorkspace::new(&problem, data.params());
+    let out = lm::minimize_until(
+        &mut problem,
+        theta,
+        lm_opts,
+        &mut ws,
+        &|t, c, prev, evals| near(t, c).is_some() || hopeless(c, prev, evals),
+    )?;
+    if !out.cost.is_finite() {
+        return Err("non-finite cost".into());
+    }
+    if out.stopped {
+        if let Some(k) = near(&ws.theta, out.cost) {
+            return Ok(StartRun {
+                cost: known[k].1,
+                theta: known[k].0.clone(),
+                evals: out.evaluations,
+                abandoned: false,
+            });
+        }
+    }
+    Ok(StartRun {
+        cost: out.cost,
+        theta: ws.theta,
+        evals: out.evaluations,
+        abandoned: out.stopped,
+    })
 }
 
 fn run_one(data: &FitData, theta: &[f64], lm_opts: &LmOptions) -> Result<StartRun, String> {
@@ -427,6 +520,7 @@ fn run_one(data: &FitData, theta: &[f64], lm_opts: &LmOptions) -> Result<StartRu
         cost: out.cost,
         theta: ws.theta,
         evals: out.evaluations,
+        abandoned: false,
     })
 }
 

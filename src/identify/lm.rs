@@ -16,6 +16,11 @@
 //! Nielsen's (smooth decrease by the gain ratio, doubling increase), which needs no
 //! trust-region radius bookkeeping.
 //!
+//! A trial step is evaluated by its cost alone (`ChainProblem::cost`); the normal equations
+//! are accumulated only when the step is accepted, from the per-line quantities the cost
+//! pass left behind (`ChainProblem::normal_after_cost`), so that a rejected step costs no
+//! Jacobian pass.
+//!
 //! All buffers live in [`LmWorkspace`], planned once per fit: an iteration allocates
 //! nothing in the solver and the line pass.
 
@@ -44,6 +49,8 @@ pub(crate) struct LmOutcome {
     pub(crate) evaluations: usize,
     /// Whether a tolerance was met (otherwise the budget ran out or the damping blew up).
     pub(crate) converged: bool,
+    /// Whether the caller's stop condition ended the run ([`minimize_until`]).
+    pub(crate) stopped: bool,
 }
 
 /// Buffers of [`minimize`], sized for `P` parameters once.
@@ -134,6 +141,18 @@ pub(crate) fn minimize(
     opts: &LmOptions,
     ws: &mut LmWorkspace,
 ) -> Result<LmOutcome, String> {
+    minimize_until(problem, theta0, opts, ws, &|_, _, _, _| false)
+}
+
+/// [`minimize`] that also stops (with [`LmOutcome::stopped`]) as soon as
+/// `stop(theta, cost, previous cost, evaluations)` holds after an accepted step.
+pub(crate) fn minimize_until(
+    problem: &mut ChainProblem<'_>,
+    theta0: &[f64],
+    opts: &LmOptions,
+    ws: &mut LmWorkspace,
+    stop: &dyn Fn(&[f64], f64, f64, usize) -> bool,
+) -> Result<LmOutcome, String> {
     let np = ws.np;
     ws.theta.copy_from_slice(theta0);
     problem.set_theta(&ws.theta);
@@ -147,6 +166,7 @@ pub(crate) fn minimize(
     let mut lambda = 1e-3;
     let mut nu = 2.0;
     let mut converged = false;
+    let mut stopped = false;
     while evals < opts.max_evals.max(1) {
         // gradient test: cos(r, J_j) = |g_j| / (|J_j| |r|)
         let rn = cost.sqrt();
@@ -186,15 +206,20 @@ pub(crate) fn minimize(
             ws.trial[j] = ws.theta[j] + ws.step[j];
         }
         problem.set_theta(&ws.trial);
-        let trial = problem.normal_equations(&mut ws.lines, &mut ws.jtj_trial, &mut ws.jtr_trial);
+        // the cost alone first: a rejected step costs no Jacobian pass
+        let trial = problem.cost(&mut ws.lines).filter(|&c| {
+            c < cost
+                && problem.normal_after_cost(&mut ws.lines, &mut ws.jtj_trial, &mut ws.jtr_trial)
+        });
         evals += 1;
         match trial {
-            Some(c) if c < cost => {
+            Some(c) => {
                 let rho = (cost - c) / pred.max(f64::MIN_POSITIVE);
                 let small_f = cost - c <= opts.ftol * cost && pred <= opts.ftol * cost;
                 std::mem::swap(&mut ws.theta, &mut ws.trial);
                 std::mem::swap(&mut ws.jtj, &mut ws.jtj_trial);
                 std::mem::swap(&mut ws.jtr, &mut ws.jtr_trial);
+                let prev = cost;
                 cost = c;
                 for j in 0..np {
                     ws.diag[j] = ws.diag[j].max(ws.jtj[j * np + j].sqrt());
@@ -202,6 +227,10 @@ pub(crate) fn minimize(
                 lambda *= (1.0 - (2.0 * rho - 1.0).powi(3)).max(1.0 / 3.0);
                 lambda = lambda.max(1e-12);
                 nu = 2.0;
+                if stop(&ws.theta, cost, prev, evals) {
+                    stopped = true;
+                    break;
+                }
                 if small_f || small_step {
                     converged = true;
                     break;
@@ -222,5 +251,6 @@ pub(crate) fn minimize(
         cost,
         evaluations: evals,
         converged,
+        stopped,
     })
 }

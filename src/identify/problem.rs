@@ -326,16 +326,83 @@ impl<'a> ChainProblem<'a> {
     }
 }
 
-/// Scratch of the line pass, sized once per fit ([`ChainProblem::scratch`]): nothing is
-/// allocated per evaluation.
+/// Scratch of the line passes, sized once per fit ([`ChainProblem::scratch`]): nothing is
+/// allocated per evaluation. The cost pass ([`ChainProblem::cost`]) leaves its per-line
+/// quantities here, so that the Jacobian pass ([`ChainProblem::normal_after_cost`]) of an
+/// accepted step does not compute the response again.
 #[derive(Debug, Clone, Default)]
 pub(crate) struct LineScratch {
-    e: Vec<Complex64>,
-    g: Vec<Complex64>,
-    dpd: Vec<Complex64>,
-    /// Real and imaginary parts of one Jacobian row pair (weighted), per parameter.
-    jr: Vec<f64>,
-    ji: Vec<f64>,
+    /// Weighted complex residual per line.
+    res: Vec<Complex64>,
+    /// Position response `P(z)` per line.
+    pz: Vec<Complex64>,
+    /// Per line the section terms `[e_0..e_(ns-1), g_0..g_(ns-1)]` of [`ChainProblem::position`].
+    eg: Vec<Complex64>,
+    /// One block of basis rows (see [`ChainProblem::normal_after_cost`]): per basis
+    /// function `BLOCK` real parts, then `BLOCK` imaginary parts.
+    basis: Vec<f64>,
+    /// The block's residuals, real parts then imaginary parts.
+    rblock: Vec<f64>,
+    /// Gram matrix of the basis over all lines (`nb x nb`, upper triangle).
+    gram: Vec<f64>,
+    /// Basis times residual, summed over all lines (`nb`).
+    gres: Vec<f64>,
+    /// `G M` (`nb x P`).
+    gm: Vec<f64>,
+}
+
+/// Lines per block of the Jacobian pass.
+const BLOCK: usize = 32;
+
+/// Add one block's Gram matrix (upper triangle) and basis-times-residual to `gram` and
+/// `gres` (see [`ChainProblem::normal_after_cost`]).
+#[inline(always)]
+fn gram_block_body(basis: &[f64], rb: &[f64], nb: usize, gram: &mut [f64], gres: &mut [f64]) {
+    for a in 0..nb {
+        let ba = &basis[a * 2 * BLOCK..(a + 1) * 2 * BLOCK];
+        gres[a] += dot4(ba, rb);
+        for b in a..nb {
+            gram[a * nb + b] += dot4(ba, &basis[b * 2 * BLOCK..(b + 1) * 2 * BLOCK]);
+        }
+    }
+}
+
+/// [`gram_block_body`] compiled for AVX2 and FMA.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn gram_block_avx2(
+    basis: &[f64],
+    rb: &[f64],
+    nb: usize,
+    gram: &mut [f64],
+    gres: &mut [f64],
+) {
+    gram_block_body(basis, rb, nb, gram, gres)
+}
+
+/// [`gram_block_body`] with AVX2 and FMA where the CPU has them (checked once).
+fn gram_block(basis: &[f64], rb: &[f64], nb: usize, gram: &mut [f64], gres: &mut [f64]) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma") {
+            // SAFETY: the CPU supports the features the function is compiled for.
+            unsafe { gram_block_avx2(basis, rb, nb, gram, gres) };
+            return;
+        }
+    }
+    gram_block_body(basis, rb, nb, gram, gres)
+}
+
+/// `sum a_i b_i` with four independent partial sums (vectorisable; `a.len()` a multiple of 4).
+#[inline(always)]
+fn dot4(a: &[f64], b: &[f64]) -> f64 {
+    let mut acc = [0.0; 4];
+    for (x, y) in a.chunks_exact(4).zip(b.chunks_exact(4)) {
+        for k in 0..4 {
+            acc[k] += x[k] * y[k];
+        }
+    }
+    (acc[0] + acc[2]) + (acc[1] + acc[3])
 }
 
 impl FitData {
@@ -366,17 +433,22 @@ impl<'a> ChainProblem<'a> {
         }
     }
 
-    /// Scratch buffers for [`Self::normal_equations`].
+    /// Scratch buffers for [`Self::cost`] and [`Self::normal_equations`].
     pub(crate) fn scratch(&self) -> LineScratch {
         let np = self.data.params();
         let ns = self.data.masses.saturating_sub(1);
+        let nb = 1 + 4 * ns;
+        let lines = self.data.z.len();
         let zero = Complex64::new(0.0, 0.0);
         LineScratch {
-            e: vec![zero; ns],
-            g: vec![zero; ns],
-            dpd: vec![zero; np],
-            jr: vec![0.0; np],
-            ji: vec![0.0; np],
+            res: vec![zero; lines],
+            pz: vec![zero; lines],
+            eg: vec![zero; 2 * ns.max(1) * lines],
+            basis: vec![0.0; 2 * BLOCK * nb],
+            rblock: vec![0.0; 2 * BLOCK],
+            gram: vec![0.0; nb * nb],
+            gres: vec![0.0; nb],
+            gm: vec![0.0; nb * np],
         }
     }
 
@@ -391,83 +463,147 @@ impl<'a> ChainProblem<'a> {
         self.update();
     }
 
-    /// Weighted complex log-ratio `w ln(H_model/H_meas)` on line `i` (fills the scratch's
-    /// section terms).
-    #[inline]
-    fn weighted_log_ratio(&self, i: usize, s: &mut LineScratch) -> (Complex64, Complex64) {
-        let pz = self.position(i, &mut s.e, &mut s.g);
-        let v = pz * self.data.k[i];
-        let w = self.data.w[i];
-        (
-            pz,
-            Complex64::new(w * 0.5 * v.norm_sqr().ln(), w * v.im.atan2(v.re)),
-        )
+    /// The cost `sum r^2` at the current parameters: the response and the weighted
+    /// residual of every line, kept in `s` for [`Self::normal_after_cost`]. `None` where
+    /// the model is invalid or the cost is not finite.
+    pub(crate) fn cost(&self, s: &mut LineScratch) -> Option<f64> {
+        if !self.state.ok {
+            return None;
+        }
+        let d = self.data;
+        let ns = self.state.sec.len();
+        let mut cost = 0.0;
+        for (i, ((res, pz), eg)) in s
+            .res
+            .iter_mut()
+            .zip(s.pz.iter_mut())
+            .zip(s.eg.chunks_exact_mut(2 * ns.max(1)))
+            .enumerate()
+        {
+            let (e, g) = eg.split_at_mut(ns);
+            let p = self.position(i, e, g);
+            let v = p * d.k[i];
+            let w = d.w[i];
+            let r = Complex64::new(w * 0.5 * v.norm_sqr().ln(), w * v.im.atan2(v.re));
+            cost += r.norm_sqr();
+            *res = r;
+            *pz = p;
+        }
+        cost.is_finite().then_some(cost)
+    }
+
+    /// The normal equations `J^T J` (`jtj`, `P x P` row-major, both triangles) and `J^T r`
+    /// (`jtr`) at the current parameters, from the per-line quantities the last
+    /// [`Self::cost`] pass at these same parameters left in `s`. `false` where anything is
+    /// not finite.
+    ///
+    /// The `2 lines x P` Jacobian is never formed. Per line, `d ln H / d theta_j` is
+    /// `sum_k B_k M_kj`: the `nb = 1 + 4 (n-1)` complex basis functions `B` (the rigid term
+    /// `-gamma/J^2` and, per section, `w e`, `e`, `w g e`, `g e`, all times `weight / P`)
+    /// combined by the real `nb x P` matrix `M` of the parameter derivatives (`dJ`, and per
+    /// section `dn1, dn0, -db1, -db0`), which is the same on every line. So
+    /// `J^T J = M^T G M` and `J^T r = M^T (B^T r)` with the basis' Gram matrix `G`, which
+    /// is accumulated over blocks of lines by vectorisable dot products.
+    pub(crate) fn normal_after_cost(
+        &self,
+        s: &mut LineScratch,
+        jtj: &mut [f64],
+        jtr: &mut [f64],
+    ) -> bool {
+        if !self.state.ok {
+            return false;
+        }
+        let d = self.data;
+        let st = &self.state;
+        let np = d.params();
+        let ns = st.sec.len();
+        let nb = 1 + 4 * ns;
+        let lines = d.z.len();
+        let gram = &mut s.gram[..nb * nb];
+        let gres = &mut s.gres[..nb];
+        gram.fill(0.0);
+        gres.fill(0.0);
+        let inv_j2 = 1.0 / (st.j_total * st.j_total);
+        let basis = &mut s.basis[..2 * BLOCK * nb];
+        let rb = &mut s.rblock[..];
+        for start in (0..lines).step_by(BLOCK) {
+            let len = BLOCK.min(lines - start);
+            if len < BLOCK {
+                basis.fill(0.0);
+                rb.fill(0.0);
+            }
+            for l in 0..len {
+                let i = start + l;
+                let wip = d.w[i] * s.pz[i].inv();
+                let z = d.zm1[i];
+                let mut put = |k: usize, c: Complex64| {
+                    basis[k * 2 * BLOCK + l] = c.re;
+                    basis[k * 2 * BLOCK + BLOCK + l] = c.im;
+                };
+                put(0, -d.gamma[i] * inv_j2 * wip);
+                let eg = &s.eg[i * 2 * ns..(i + 1) * 2 * ns];
+                for k in 0..ns {
+                    let e = eg[k] * wip;
+                    let ge = eg[ns + k] * e;
+                    put(1 + 4 * k, z * e);
+                    put(2 + 4 * k, e);
+                    put(3 + 4 * k, z * ge);
+                    put(4 + 4 * k, ge);
+                }
+                let r = s.res[i];
+                rb[l] = r.re;
+                rb[BLOCK + l] = r.im;
+            }
+            gram_block(basis, rb, nb, gram, gres);
+        }
+        for a in 0..nb {
+            for b in 0..a {
+                gram[a * nb + b] = gram[b * nb + a];
+            }
+        }
+        // M (nb x P): row 0 dJ, then per section dn1, dn0, -db1, -db0
+        let m = |k: usize, j: usize| -> f64 {
+            if k == 0 {
+                st.dj[j]
+            } else {
+                let (sec, c) = ((k - 1) / 4, (k - 1) % 4);
+                let v = st.dsec[sec * np + j][c];
+                if c < 2 {
+                    v
+                } else {
+                    -v
+                }
+            }
+        };
+        let gm = &mut s.gm[..nb * np];
+        for a in 0..nb {
+            for j in 0..np {
+                gm[a * np + j] = (0..nb).map(|b| gram[a * nb + b] * m(b, j)).sum();
+            }
+        }
+        for i in 0..np {
+            jtr[i] = (0..nb).map(|a| m(a, i) * gres[a]).sum();
+            for j in i..np {
+                let v: f64 = (0..nb).map(|a| m(a, i) * gm[a * np + j]).sum();
+                jtj[i * np + j] = v;
+                jtj[j * np + i] = v;
+            }
+        }
+        jtr.iter().all(|v| v.is_finite()) && jtj.iter().all(|v| v.is_finite())
     }
 
     /// The cost `sum r^2` together with the normal equations `J^T J` (`jtj`, `P x P`
-    /// row-major, both triangles) and `J^T r` (`jtr`), accumulated line by line while the
-    /// residuals and the analytic Jacobian rows are computed: the `2 lines x P` Jacobian is
-    /// never formed. `None` where the model is invalid or anything is not finite.
+    /// row-major, both triangles) and `J^T r` (`jtr`): [`Self::cost`] then
+    /// [`Self::normal_after_cost`]. `None` where the model is invalid or anything is not
+    /// finite.
     pub(crate) fn normal_equations(
         &self,
         s: &mut LineScratch,
         jtj: &mut [f64],
         jtr: &mut [f64],
     ) -> Option<f64> {
-        if !self.state.ok {
-            return None;
-        }
-        let d = self.data;
-        let st = &self.state;
-        let np = d.params();
-        let ns = st.sec.len();
-        jtj.fill(0.0);
-        jtr.fill(0.0);
-        let mut cost = 0.0;
-        for i in 0..d.z.len() {
-            let (pz, r) = self.weighted_log_ratio(i, s);
-            cost += r.norm_sqr();
-            let z = d.zm1[i];
-            let w = d.w[i];
-            // w / P: the weighted d ln H / dP
-            let wip = w * pz.inv();
-            let rigid = -d.gamma[i] / (st.j_total * st.j_total);
-            for (v, dj) in s.dpd.iter_mut().zip(&st.dj) {
-                *v = rigid * *dj;
-            }
-            for k in 0..ns {
-                let (e, g) = (s.e[k], s.g[k]);
-                let ze = z * e;
-                let ge = g * e;
-                let gze = ge * z;
-                let ds = &st.dsec[k * np..(k + 1) * np];
-                for (v, c) in s.dpd.iter_mut().zip(ds) {
-                    *v += ze * c[0] + e * c[1] - gze * c[2] - ge * c[3];
-                }
-            }
-            for j in 0..np {
-                let gj = s.dpd[j] * wip;
-                s.jr[j] = gj.re;
-                s.ji[j] = gj.im;
-            }
-            for a in 0..np {
-                let (ra, ia) = (s.jr[a], s.ji[a]);
-                jtr[a] += ra * r.re + ia * r.im;
-                let row = &mut jtj[a * np..(a + 1) * np];
-                for b in a..np {
-                    row[b] += ra * s.jr[b] + ia * s.ji[b];
-                }
-            }
-        }
-        for a in 0..np {
-            for b in 0..a {
-                jtj[a * np + b] = jtj[b * np + a];
-            }
-        }
-        let finite = cost.is_finite()
-            && jtr.iter().all(|v| v.is_finite())
-            && jtj.iter().all(|v| v.is_finite());
-        finite.then_some(cost)
+        let cost = self.cost(s)?;
+        self.normal_after_cost(s, jtj, jtr).then_some(cost)
     }
 }
 

@@ -261,7 +261,7 @@ pub(super) fn fit_chain_coarse(
 
 /// Lines of the coarse problem the starts of [`fit_chain`] first run on (when there are at
 /// least twice as many).
-const COARSE_LINES: usize = 500;
+const COARSE_LINES: usize = 250;
 /// Coarse optima closer than this in every log-parameter are one candidate (0.1 %).
 const SAME_OPTIMUM: f64 = 1e-3;
 /// Coarse optima with more than this times the best coarse cost are not refined.

@@ -132,8 +132,9 @@ fn covariance_matches_the_full_jacobian_path() {
     }
 }
 
-/// Coarse to fine (the starts on every k-th line, refined on all lines) reaches the optimum
-/// of running every start on all lines, with the same standard deviations.
+/// Coarse to fine (the starts on every k-th line, merged into known optima or abandoned
+/// when hopeless, refined on all lines) reaches the optimum of running every start on all
+/// lines, with the same standard deviations, and the same result on 1 and 3 threads.
 #[test]
 fn coarse_to_fine_reaches_the_all_lines_optimum() {
     for (ch, f0, seed) in [(three_mass(), 0.5_f64, 21), (four_mass(0.02), 5.0, 22)] {
@@ -149,6 +150,16 @@ fn coarse_to_fine_reaches_the_all_lines_optimum() {
         let fast = fit_chain(&frf, &perturbed(&ch), &opts).unwrap();
         let slow = fit_chain_coarse(&frf, &perturbed(&ch), &opts, usize::MAX).unwrap();
         let label = format!("{}-mass", ch.masses());
+        // the waves of the coarse phase do not depend on the number of threads
+        let threaded = FitOptions {
+            threads: 3,
+            ..opts.clone()
+        };
+        assert_eq!(
+            fit_chain(&frf, &perturbed(&ch), &threaded).unwrap(),
+            fast,
+            "{label}: 3 threads"
+        );
         assert!(
             (fast.cost - slow.cost).abs() <= 1e-8 * slow.cost,
             "{label}: cost {} vs {}",

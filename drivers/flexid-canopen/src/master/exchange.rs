@@ -200,6 +200,12 @@ mod tests {
         t0 + Duration::from_micros(micros)
     }
 
+    /// Begins a cycle (Enable operation, torque 0) whose SYNC goes out at `micros`.
+    fn sync_at(x: &mut Exchange, t0: Instant, micros: u64) {
+        x.begin(0x000F, 0);
+        x.sync_sent(us(t0, micros));
+    }
+
     #[test]
     fn classifies_and_counts() {
         let t0 = Instant::now();
@@ -232,14 +238,12 @@ mod tests {
         assert_eq!(x.end(), (false, 1));
         // TPDO2 arrives late, during the next drain
         assert_eq!(x.on_frame(&f(0x283, &[0; 4]), us(t0, 900)), Event::Late);
-        x.begin(0x000F, 0);
-        x.sync_sent(us(t0, 1000));
+        sync_at(&mut x, t0, 1000);
         assert_eq!(x.counters.missed, 1);
         assert_eq!(x.counters.late, 1);
         assert_eq!(x.end(), (false, 2));
         assert_eq!(x.counters.lost, 0);
-        x.begin(0x000F, 0);
-        x.sync_sent(us(t0, 2000));
+        sync_at(&mut x, t0, 2000);
         x.end();
         assert_eq!(x.counters.lost, 2, "cycle 2's TPDO1 and TPDO2 never came");
         assert_eq!(x.counters.malformed, 2);
@@ -265,21 +269,18 @@ mod tests {
         let t0 = Instant::now();
         let mut x = Exchange::new(5);
         // cycle 0: answered in time
-        x.begin(0x000F, 0);
-        x.sync_sent(us(t0, 0));
+        sync_at(&mut x, t0, 0);
         for fr in answer(100, 7) {
             assert_eq!(x.on_frame(&fr, us(t0, 200)), Event::Feedback);
         }
         assert_eq!(x.end(), (true, 0));
         // cycle 1: SYNC at 1000 us, nothing by its deadline (2000 us)
-        x.begin(0x000F, 0);
-        x.sync_sent(us(t0, 1000));
+        sync_at(&mut x, t0, 1000);
         assert_eq!(x.end(), (false, 1));
         // cycle 2: the drain found nothing; RPDO1 and SYNC go out at 2050 us. Cycle 1's
         // answer arrived at 2040 us (after the drain, before this SYNC) and is read
         // now, in the wait, followed by cycle 2's own answer at 2250 us.
-        x.begin(0x000F, 0);
-        x.sync_sent(us(t0, 2050));
+        sync_at(&mut x, t0, 2050);
         let [late1, late2] = answer(111, 11);
         assert_eq!(x.on_frame(&late1, us(t0, 2040)), Event::Late);
         assert_eq!(x.on_frame(&late2, us(t0, 2040)), Event::Late);
@@ -301,8 +302,7 @@ mod tests {
         // The reference this replaces: classifying by when the frame was read (in the
         // wait) took cycle 1's answer as cycle 2's sample.
         let mut naive = Exchange::new(5);
-        naive.begin(0x000F, 0);
-        naive.sync_sent(us(t0, 2050));
+        sync_at(&mut naive, t0, 2050);
         naive.on_frame(&late1, us(t0, 2300)); // read time, not arrival
         assert_eq!(naive.tpdo1.position, 111);
     }
@@ -313,8 +313,7 @@ mod tests {
     fn an_answer_from_before_the_sync_is_never_this_cycles() {
         let t0 = Instant::now();
         let mut x = Exchange::new(5);
-        x.begin(0x000F, 0);
-        x.sync_sent(us(t0, 1000));
+        sync_at(&mut x, t0, 1000);
         let [a, b] = answer(5, 5);
         assert_eq!(x.on_frame(&a, us(t0, 999)), Event::Ignored);
         assert_eq!(x.on_frame(&b, us(t0, 999)), Event::Ignored);

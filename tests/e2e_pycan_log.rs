@@ -85,17 +85,18 @@ fn python_can_logger_records_a_sweep_as_sync_rpdo_tpdo_cycles() {
         ],
         Duration::from_secs(300),
     );
-    assert!(
-        o.status.success(),
-        "sweep failed:\n{}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-    // Let the logger drain its socket, then stop it as a user would (Ctrl-C).
+    // Let the logger drain its socket, then stop it as a user would (Ctrl-C); also when
+    // the sweep failed (it would outlive the test and load the next runs).
     std::thread::sleep(Duration::from_millis(500));
     unsafe {
         libc::kill(logger.id() as i32, libc::SIGINT);
     }
     let _ = logger.wait();
+    assert!(
+        o.status.success(),
+        "sweep failed:\n{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
     eprintln!("logged in {:.1} s", t0.elapsed().as_secs_f64());
 
     let dec = Command::new(&py)

@@ -54,25 +54,13 @@ async fn sweep_streams_bode_every_period_and_the_result() {
     assert!((j[1].as_f64().unwrap() - 4e-3).abs() < 4e-4, "{j:?}");
 
     // status + result JSON as `flexid identify --json` writes it
-    let st: serde_json::Value = auth(client().get(d.url(&format!("/api/v1/sweeps/{id}"))))
-        .send()
-        .await
-        .unwrap()
-        .json()
-        .await
-        .unwrap();
+    let st: serde_json::Value = get_json(&d.url(&format!("/api/v1/sweeps/{id}"))).await;
     assert_eq!(st["state"], "completed");
     assert_eq!(st["result"]["model"]["masses"], 2);
     assert!(st["result"]["frf"].is_object() || st["result"]["frf"].is_array());
 
     // the axis lists the result
-    let axes: serde_json::Value = auth(client().get(d.url("/api/v1/axes")))
-        .send()
-        .await
-        .unwrap()
-        .json()
-        .await
-        .unwrap();
+    let axes: serde_json::Value = get_json(&d.url("/api/v1/axes")).await;
     assert_eq!(axes["axes"][0]["last_result_id"], id.as_str());
     assert_eq!(axes["axes"][0]["state"], "idle");
 
@@ -174,13 +162,7 @@ async fn two_axes_at_once_and_busy_axis() {
     let v: serde_json::Value = r.json().await.unwrap();
     assert!(v["error"].as_str().unwrap().contains("busy"));
     assert_eq!(d.backend.calls(), calls);
-    let axes: serde_json::Value = auth(client().get(d.url("/api/v1/axes")))
-        .send()
-        .await
-        .unwrap()
-        .json()
-        .await
-        .unwrap();
+    let axes: serde_json::Value = get_json(&d.url("/api/v1/axes")).await;
     assert_eq!(axes["axes"][1]["state"], "sweeping");
     assert_eq!(axes["axes"][1]["sweep_id"], slow.as_str());
     let (a, b) = tokio::join!(
@@ -210,32 +192,10 @@ async fn abort_mid_sweep_keeps_the_partial_recording() {
     assert_eq!(ended.event, "ended");
     assert_eq!(ended.data["outcome"], "aborted");
     assert_eq!(ended.data["reason"], "operator abort");
-    let st: serde_json::Value = auth(client().get(d.url(&format!("/api/v1/sweeps/{id}"))))
-        .send()
-        .await
-        .unwrap()
-        .json()
-        .await
-        .unwrap();
+    let st: serde_json::Value = get_json(&d.url(&format!("/api/v1/sweeps/{id}"))).await;
     assert_eq!(st["state"], "aborted");
     // the partial recording is downloadable and parses; it ends with the ramp to zero
-    let csv = auth(client().get(d.url(&format!("/api/v1/sweeps/{id}/recording.csv"))))
-        .send()
-        .await
-        .unwrap()
-        .text()
-        .await
-        .unwrap();
-    let side = auth(client().get(d.url(&format!("/api/v1/sweeps/{id}/recording.json"))))
-        .send()
-        .await
-        .unwrap()
-        .text()
-        .await
-        .unwrap();
-    let rec = flexid::recording::parse_recording(&csv, Some(&side))
-        .unwrap()
-        .recording;
+    let rec = get_recording(&d.url(""), &id).await;
     assert!(rec.len() >= 4000 && rec.len() < 20_000, "{}", rec.len());
     assert_eq!(*rec.torque_cmd_nm.last().unwrap(), 0.0);
     assert_eq!(rec.sidecar.ended_because.as_deref(), Some("operator abort"));
@@ -382,24 +342,12 @@ async fn stored_sweep_after_restart_and_shutdown_aborts() {
     tokio::time::sleep(Duration::from_millis(300)).await;
     d.stop().await;
     let d = TestDaemon::start(tmp.path(), "").await;
-    let st: serde_json::Value = auth(client().get(d.url(&format!("/api/v1/sweeps/{id}"))))
-        .send()
-        .await
-        .unwrap()
-        .json()
-        .await
-        .unwrap();
+    let st: serde_json::Value = get_json(&d.url(&format!("/api/v1/sweeps/{id}"))).await;
     assert_eq!(st["state"], "aborted", "{st}");
     assert_eq!(st["reason"], "daemon shutdown");
     let evs = read_events(&d, &id, |_| false).await;
     assert_eq!(evs.last().unwrap().data["outcome"], "aborted");
-    let axes: serde_json::Value = auth(client().get(d.url("/api/v1/axes")))
-        .send()
-        .await
-        .unwrap()
-        .json()
-        .await
-        .unwrap();
+    let axes: serde_json::Value = get_json(&d.url("/api/v1/axes")).await;
     assert_eq!(axes["axes"][1]["last_sweep_id"], id.as_str());
     d.stop().await;
 }

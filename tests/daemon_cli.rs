@@ -4,10 +4,10 @@
 
 mod daemon_common;
 
+use daemon_common::process::DaemonProc;
 use daemon_common::*;
-use std::io::{BufRead, BufReader};
 use std::path::Path;
-use std::process::{Child, Command, Stdio};
+use std::process::{Command, Stdio};
 use std::time::Duration;
 
 const BIN: &str = env!("CARGO_BIN_EXE_flexid");
@@ -24,25 +24,26 @@ fn write_config(dir: &Path, extra: &str) -> std::path::PathBuf {
     p
 }
 
-/// Start the daemon; returns the child and the address from its first stdout line.
-fn spawn(config: &Path) -> (Child, String) {
-    let mut child = Command::new(BIN)
+/// Runs `flexid daemon --config config`, which must refuse to start (exit code 2);
+/// returns its stderr.
+fn refused(config: &Path) -> String {
+    let out = Command::new(BIN)
         .args(["daemon", "--config"])
         .arg(config)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::null())
-        .spawn()
+        .output()
         .unwrap();
-    let mut line = String::new();
-    BufReader::new(child.stdout.take().unwrap())
-        .read_line(&mut line)
-        .unwrap();
-    let addr = line
-        .trim()
-        .strip_prefix("flexid daemon: listening on ")
-        .unwrap_or_else(|| panic!("first line: {line:?}"))
-        .to_string();
-    (child, addr)
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    err
+}
+
+/// Start the daemon (stderr discarded).
+fn spawn(config: &Path) -> DaemonProc {
+    let mut cmd = Command::new(BIN);
+    cmd.args(["daemon", "--config"])
+        .arg(config)
+        .stderr(Stdio::null());
+    DaemonProc::spawn(cmd)
 }
 
 #[test]
@@ -70,13 +71,7 @@ fn invalid_configuration_is_refused_naming_the_key() {
     ];
     for (bad, want) in cases {
         std::fs::write(&p, bad).unwrap();
-        let out = Command::new(BIN)
-            .args(["daemon", "--config"])
-            .arg(&p)
-            .output()
-            .unwrap();
-        let err = String::from_utf8_lossy(&out.stderr);
-        assert_eq!(out.status.code(), Some(2), "{err}");
+        let err = refused(&p);
         assert!(err.contains(want), "want {want:?} in: {err}");
     }
     // a token file readable by others: refused, naming the file and the mode
@@ -84,13 +79,7 @@ fn invalid_configuration_is_refused_naming_the_key() {
     use std::os::unix::fs::PermissionsExt;
     let tok = tmp.path().join("token");
     std::fs::set_permissions(&tok, std::fs::Permissions::from_mode(0o644)).unwrap();
-    let out = Command::new(BIN)
-        .args(["daemon", "--config"])
-        .arg(&p)
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(2), "{err}");
+    let err = refused(&p);
     assert!(
         err.contains(&tok.display().to_string()) && err.contains("0644"),
         "{err}"
@@ -101,55 +90,25 @@ fn invalid_configuration_is_refused_naming_the_key() {
 async fn crash_during_a_sweep_is_reported_interrupted_after_restart() {
     let tmp = tempfile::tempdir().unwrap();
     let cfg = write_config(tmp.path(), "");
-    let (mut child, addr) = spawn(&cfg);
-    let base = format!("http://{addr}");
-    let r = auth(client().post(format!("{base}/api/v1/axes/slow/sweeps")))
-        .body(body("multisine", 9, 20.0))
-        .send()
-        .await
-        .unwrap();
-    assert_eq!(r.status(), 202);
-    let v: serde_json::Value = r.json().await.unwrap();
-    let id = v["sweep_id"].as_str().unwrap().to_string();
+    let mut d = spawn(&cfg);
+    let base = d.base.clone();
+    let id = start_sweep_at(&base, "slow", &body("multisine", 9, 20.0)).await;
     // let two or three periods (2 s each) reach the disk, then kill -9
     tokio::time::sleep(Duration::from_millis(5000)).await;
-    child.kill().unwrap();
-    child.wait().unwrap();
+    d.kill();
     let dir = tmp.path().join("data/slow").join(&id);
     assert!(dir.join("running").exists(), "marker left behind");
 
-    let (mut child, addr) = spawn(&cfg);
-    let base = format!("http://{addr}");
-    let st: serde_json::Value = auth(client().get(format!("{base}/api/v1/sweeps/{id}")))
-        .send()
-        .await
-        .unwrap()
-        .json()
-        .await
-        .unwrap();
+    let mut d = spawn(&cfg);
+    let base = d.base.clone();
+    let st: serde_json::Value = get_json(&format!("{base}/api/v1/sweeps/{id}")).await;
     assert_eq!(st["state"], "interrupted", "{st}");
     let samples = st["samples"].as_u64().unwrap();
     assert!(
         samples >= 2000 && samples % 2000 == 0,
         "whole periods saved: {samples}"
     );
-    let csv = auth(client().get(format!("{base}/api/v1/sweeps/{id}/recording.csv")))
-        .send()
-        .await
-        .unwrap()
-        .text()
-        .await
-        .unwrap();
-    let side = auth(client().get(format!("{base}/api/v1/sweeps/{id}/recording.json")))
-        .send()
-        .await
-        .unwrap()
-        .text()
-        .await
-        .unwrap();
-    let rec = flexid::recording::parse_recording(&csv, Some(&side))
-        .unwrap()
-        .recording;
+    let rec = get_recording(&base, &id).await;
     assert_eq!(rec.len() as u64, samples);
     assert!(rec
         .sidecar
@@ -158,21 +117,15 @@ async fn crash_during_a_sweep_is_reported_interrupted_after_restart() {
         .starts_with("interrupted"));
     assert!(!dir.join("running").exists());
     // the axis is free again
-    let axes: serde_json::Value = auth(client().get(format!("{base}/api/v1/axes")))
-        .send()
-        .await
-        .unwrap()
-        .json()
-        .await
-        .unwrap();
+    let axes: serde_json::Value = get_json(&format!("{base}/api/v1/axes")).await;
     assert_eq!(axes["axes"][1]["state"], "idle");
     assert_eq!(axes["axes"][1]["last_sweep_id"], id.as_str());
     // SIGTERM: clean stop
-    let pid = child.id().to_string();
+    let pid = d.child.id().to_string();
     Command::new("kill").args(["-TERM", &pid]).status().unwrap();
     let t0 = std::time::Instant::now();
     loop {
-        if let Some(status) = child.try_wait().unwrap() {
+        if let Some(status) = d.child.try_wait().unwrap() {
             assert!(status.success(), "{status}");
             break;
         }
@@ -193,20 +146,14 @@ fn notifies_systemd_ready_watchdog_and_stopping() {
     let sock = UnixDatagram::bind(&sock_path).unwrap();
     sock.set_read_timeout(Some(Duration::from_secs(10)))
         .unwrap();
-    let mut child = Command::new(BIN)
-        .args(["daemon", "--config"])
+    let mut cmd = Command::new(BIN);
+    cmd.args(["daemon", "--config"])
         .arg(&cfg)
         .env("NOTIFY_SOCKET", &sock_path)
         .env("WATCHDOG_USEC", "200000")
         .env_remove("WATCHDOG_PID")
-        .stdout(Stdio::piped())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
-    let mut line = String::new();
-    BufReader::new(child.stdout.take().unwrap())
-        .read_line(&mut line)
-        .unwrap();
+        .stderr(Stdio::null());
+    let mut d = DaemonProc::spawn(cmd);
     let mut buf = [0u8; 512];
     let mut got = Vec::new();
     let t0 = std::time::Instant::now();
@@ -222,15 +169,12 @@ fn notifies_systemd_ready_watchdog_and_stopping() {
     }
     assert!(got[0].contains("READY=1"), "{got:?}");
     assert!(
-        got[0].contains(&format!(
-            "STATUS=API on {}",
-            line.trim().rsplit(' ').next().unwrap()
-        )),
+        got[0].contains(&format!("STATUS=API on {}", d.addr())),
         "{got:?}"
     );
     // three pings at 100 ms (half of WATCHDOG_USEC) take about 0.2 s
     assert!(t0.elapsed() < Duration::from_secs(2));
-    let pid = child.id().to_string();
+    let pid = d.child.id().to_string();
     Command::new("kill").args(["-TERM", &pid]).status().unwrap();
     loop {
         let n = sock.recv(&mut buf).expect("STOPPING=1");
@@ -238,5 +182,5 @@ fn notifies_systemd_ready_watchdog_and_stopping() {
             break;
         }
     }
-    assert!(child.wait().unwrap().success());
+    assert!(d.child.wait().unwrap().success());
 }

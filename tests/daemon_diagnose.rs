@@ -12,12 +12,11 @@
 mod daemon_common;
 mod e2e;
 
-use daemon_common::{auth, client, read_events_at, token_file, Sse};
+use daemon_common::process::{canopen_config, CanAxis, DaemonProc, GROUP};
+use daemon_common::{auth, client, get_json, get_text, read_events_at, token_file, Sse};
 use e2e::*;
 use serde_json::Value;
-use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
 use std::time::Instant;
 
 /// The two-level request of these tests: 1-400 Hz at 1 kHz, 0.5 Hz lines, 1 + 4 periods of
@@ -69,13 +68,10 @@ async fn two_level_sweep(base: &str, axis: &str) -> Value {
     assert!(diag.get("error").is_none(), "diagnosis failed: {diag}");
     // each level's recording is stored, at its own peak torque
     for (n, peak) in [(1, 0.1), (2, 0.5)] {
-        let csv = auth(client().get(format!("{base}/api/v1/sweeps/{id}/recording.csv?level={n}")))
-            .send()
-            .await
-            .unwrap()
-            .text()
-            .await
-            .unwrap();
+        let csv = get_text(&format!(
+            "{base}/api/v1/sweeps/{id}/recording.csv?level={n}"
+        ))
+        .await;
         let torque: Vec<f64> = csv
             .lines()
             .skip(1)
@@ -99,13 +95,7 @@ async fn two_level_sweep(base: &str, axis: &str) -> Value {
     let result = &evs.iter().find(|e| e.event == "result").unwrap().data;
     assert_eq!(result["diagnosis"]["verdict"], diag["verdict"]);
     assert_eq!(result["levels"].as_array().unwrap().len(), 2);
-    let st: Value = auth(client().get(format!("{base}/api/v1/sweeps/{id}")))
-        .send()
-        .await
-        .unwrap()
-        .json()
-        .await
-        .unwrap();
+    let st: Value = get_json(&format!("{base}/api/v1/sweeps/{id}")).await;
     assert_eq!(st["has_diagnosis"], true, "{st}");
     assert_eq!(st["result"]["diagnosis"]["verdict"], diag["verdict"]);
     let gap = &diag["gap"];
@@ -136,56 +126,12 @@ async fn two_level_sweep(base: &str, axis: &str) -> Value {
 
 /// The daemon binary with the CANopen backend on the vdrive's bus.
 async fn canopen_verdict(plant_file: &str, port: u16) -> Value {
-    let group = "239.74.163.2";
-    let _vd = VDrive::start(&format!("udp:{group}:{port}"), &plant(plant_file));
+    let _vd = VDrive::start(&format!("udp:{GROUP}:{port}"), &plant(plant_file));
     let tmp = tempfile::tempdir().unwrap();
     let token = token_file(tmp.path(), 0o600);
-    let cfg = tmp.path().join("flexid.toml");
-    std::fs::write(
-        &cfg,
-        format!(
-            r#"
-data_dir = "{data}"
-[api]
-listen = "127.0.0.1:0"
-token_file = "{token}"
-[backend]
-kind = "canopen"
-[[bus]]
-name = "bench"
-kind = "udp"
-group = "{group}"
-port = {port}
-bitrate = 1000000
-[[axis]]
-name = "a5"
-bus = "bench"
-node = 5
-cycle_hz = 1000
-clock = "simulated"
-limits = {{ peak_torque_nm = 1.0, max_speed_rad_s = 300.0, position_window_rad = 1000.0, max_sweep_s = 60 }}
-"#,
-            data = tmp.path().join("data").display(),
-            token = token.display()
-        ),
-    )
-    .unwrap();
-    let mut child = Command::new(FLEXID)
-        .args(["daemon", "--config"])
-        .arg(&cfg)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::inherit())
-        .spawn()
-        .unwrap();
-    let mut line = String::new();
-    BufReader::new(child.stdout.take().unwrap())
-        .read_line(&mut line)
-        .unwrap();
-    let base = format!("http://{}", line.trim().rsplit(' ').next().unwrap());
-    let d = two_level_sweep(&base, "a5").await;
-    let _ = child.kill();
-    let _ = child.wait();
-    d
+    let cfg = canopen_config(tmp.path(), &token, &[CanAxis::new("a5", port)], "");
+    let daemon = DaemonProc::start(FLEXID, &cfg);
+    two_level_sweep(&daemon.base, "a5").await
 }
 
 #[tokio::test]

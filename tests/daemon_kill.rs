@@ -13,7 +13,9 @@ mod daemon_common;
 mod e2e;
 
 use daemon_common::process::{canopen_config, CanAxis, DaemonProc, GROUP};
-use daemon_common::{auth, client, read_events_at, start_sweep_at, token_file, Sse};
+use daemon_common::{
+    auth, client, get_json, get_text, read_events_at, start_sweep_at, token_file, Sse,
+};
 use e2e::*;
 use flexid::daemon::canopen_backend::{open_udp, CanopenBackend};
 use flexid::daemon::config::BusConfig;
@@ -37,13 +39,7 @@ async fn until_period(base: &str, id: &str, n: u64) -> Vec<Sse> {
 }
 
 async fn status(base: &str, id: &str) -> serde_json::Value {
-    auth(client().get(format!("{base}/api/v1/sweeps/{id}")))
-        .send()
-        .await
-        .unwrap()
-        .json()
-        .await
-        .unwrap()
+    get_json(&format!("{base}/api/v1/sweeps/{id}")).await
 }
 
 /// The sweep ended as `outcome` with a reason starting with `reason`; its rows are on disk
@@ -92,20 +88,7 @@ async fn sigkill_mid_sweep_the_drive_stops_and_the_restart_reports_the_saved_per
     while watch.recv_timeout(Duration::ZERO).unwrap().is_some() {}
     d.kill();
     let killed = Instant::now();
-    let mut emcy = None;
-    while killed.elapsed() < Duration::from_secs(3) {
-        let Ok(Some(r)) = watch.recv_timeout(Duration::from_millis(50)) else {
-            continue;
-        };
-        let f = r.frame;
-        if f.id() == flexid_can::CanId::Standard(0x085) && f.data().len() == 8 {
-            emcy = Some((
-                killed.elapsed(),
-                u16::from_le_bytes([f.data()[0], f.data()[1]]),
-            ));
-            break;
-        }
-    }
+    let emcy = first_emcy(&mut watch, killed, Duration::from_secs(3));
     let (after, code) = emcy.expect("no EMCY from the drive within 3 s of the daemon's death");
     assert_eq!(code, 0x8130, "EMCY {code:#06x}, not heartbeat/life guard");
     eprintln!(
@@ -128,13 +111,7 @@ async fn sigkill_mid_sweep_the_drive_stops_and_the_restart_reports_the_saved_per
     );
     let dir = tmp.path().join("data/k1").join(&id);
     assert_eq!(rows(&dir) as u64, samples);
-    let csv = auth(client().get(d2.url(&format!("/api/v1/sweeps/{id}/recording.csv"))))
-        .send()
-        .await
-        .unwrap()
-        .text()
-        .await
-        .unwrap();
+    let csv = get_text(&d2.url(&format!("/api/v1/sweeps/{id}/recording.csv"))).await;
     assert_eq!(csv.lines().count() as u64, samples + 1);
     // the axis is free again and the drive usable after its fault: a new sweep starts
     let r = auth(client().get(d2.url("/api/v1/axes")))

@@ -190,13 +190,7 @@ async fn browser_watches_the_bode_plot_grow_aborts_and_reads_the_parameters() {
         .as_str()
         .unwrap()
         .to_string();
-    let st: serde_json::Value = auth(client().get(d.url(&format!("/api/v1/sweeps/{slow_last}"))))
-        .send()
-        .await
-        .unwrap()
-        .json()
-        .await
-        .unwrap();
+    let st: serde_json::Value = get_json(&d.url(&format!("/api/v1/sweeps/{slow_last}"))).await;
     assert_eq!(st["state"], "aborted");
     assert_eq!(st["reason"], "operator abort");
     d.stop().await;

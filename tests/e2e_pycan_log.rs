@@ -59,18 +59,16 @@ fn python_can_logger_records_a_sweep_as_sync_rpdo_tpdo_cycles() {
     let t0 = Instant::now();
     let ready = out.next().and_then(Result::ok).unwrap_or_default();
     assert!(ready.contains("Connected"), "logger said: {ready}");
-    let _vd = VDrive::start(&bus, &plant_path());
+    // the master's cycle thread is SCHED_FIFO (root here and in CI): so is the drive's
+    let _vd = VDrive::start_rt(&bus, &plant_path());
     let sweep_dir = dir.path().join("sweep");
     // Real-time pacing at 250 Hz: a python logger keeps up with 1000 frames/s, not with
     // lock-step's tens of thousands (its socket would overflow and the log have gaps).
     // 4 periods + 1 transient of 250 samples.
-    let o = flexid(
+    let o = sweep_node5(
+        &bus,
+        &sweep_dir,
         &[
-            "sweep",
-            "--bus",
-            &bus,
-            "--node",
-            "5",
             "--cycle-hz",
             "250",
             "--clock",
@@ -84,22 +82,21 @@ fn python_can_logger_records_a_sweep_as_sync_rpdo_tpdo_cycles() {
             "100",
             "--masses",
             "3",
-            "--out",
-            sweep_dir.to_str().unwrap(),
         ],
         Duration::from_secs(300),
     );
-    assert!(
-        o.status.success(),
-        "sweep failed:\n{}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-    // Let the logger drain its socket, then stop it as a user would (Ctrl-C).
+    // Let the logger drain its socket, then stop it as a user would (Ctrl-C); also when
+    // the sweep failed (it would outlive the test and load the next runs).
     std::thread::sleep(Duration::from_millis(500));
     unsafe {
         libc::kill(logger.id() as i32, libc::SIGINT);
     }
     let _ = logger.wait();
+    assert!(
+        o.status.success(),
+        "sweep failed:\n{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
     eprintln!("logged in {:.1} s", t0.elapsed().as_secs_f64());
 
     let dec = Command::new(&py)

@@ -26,13 +26,10 @@ fn sweep_over_udp_identifies_the_plant() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("sweep");
     let t = Instant::now();
-    let o = flexid(
+    let o = sweep_node5(
+        &bus,
+        &out,
         &[
-            "sweep",
-            "--bus",
-            &bus,
-            "--node",
-            "5",
             "--cycle-hz",
             "1000",
             "--clock",
@@ -43,8 +40,6 @@ fn sweep_over_udp_identifies_the_plant() {
             "8",
             "--masses",
             "3",
-            "--out",
-            out.to_str().unwrap(),
         ],
         Duration::from_secs(300),
     );
@@ -182,18 +177,10 @@ fn drive_fault_mid_sweep_is_reported_and_saved() {
     let bus = bus(43223);
     let _vd = VDrive::start(&bus, &plant);
     let out = dir.path().join("fault");
-    let o = flexid(
-        &[
-            "sweep",
-            "--bus",
-            &bus,
-            "--node",
-            "5",
-            "--clock",
-            "lockstep",
-            "--out",
-            out.to_str().unwrap(),
-        ],
+    let o = sweep_node5(
+        &bus,
+        &out,
+        &["--clock", "lockstep"],
         Duration::from_secs(120),
     );
     let stderr = String::from_utf8_lossy(&o.stderr);
@@ -288,20 +275,7 @@ fn master_killed_mid_sweep_the_drive_stops_within_its_consumer_time() {
     child.kill().unwrap();
     let killed = Instant::now();
     let _ = child.wait();
-    let mut emcy = None;
-    while killed.elapsed() < Duration::from_secs(3) {
-        let Ok(Some(r)) = watch.recv_timeout(Duration::from_millis(50)) else {
-            continue;
-        };
-        let f = r.frame;
-        if f.id() == flexid_can::CanId::Standard(0x085) && f.data().len() == 8 {
-            emcy = Some((
-                killed.elapsed(),
-                u16::from_le_bytes([f.data()[0], f.data()[1]]),
-            ));
-            break;
-        }
-    }
+    let emcy = first_emcy(&mut watch, killed, Duration::from_secs(3));
     let (after, code) = emcy.expect("no EMCY from the drive within 3 s of the master's death");
     assert_eq!(
         code, 0x8130,

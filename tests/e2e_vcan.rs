@@ -30,13 +30,10 @@ fn sweep_over_socketcan_identifies_the_plant() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("vcan");
     let t = Instant::now();
-    let o = flexid(
+    let o = sweep_node5(
+        &iface,
+        &out,
         &[
-            "sweep",
-            "--bus",
-            &iface,
-            "--node",
-            "5",
             "--cycle-hz",
             "1000",
             "--clock",
@@ -50,8 +47,6 @@ fn sweep_over_socketcan_identifies_the_plant() {
             // the emulated VM runs about 100 cycles/s: not the default duration limit
             "--max-duration-s",
             "500",
-            "--out",
-            out.to_str().unwrap(),
         ],
         Duration::from_secs(580),
     );

@@ -5,8 +5,8 @@ use super::excite::{generate, ExciteArgs, ExciteKind, MultisineArgs};
 use super::{CliError, ModelArgs};
 use crate::recording::{write_recording, DriveInfo};
 use crate::sweep::{
-    admission_check, run_sweep, run_sweep_on_cycle_thread, Pacing, Progress, SweepOutcome,
-    SweepPlan,
+    admission_check, realtime_setup, run_sweep, run_sweep_on_cycle_thread, Pacing, Progress,
+    SweepOutcome, SweepPlan,
 };
 use clap::{Args, ValueEnum};
 use flexid_can::{CanBus, UdpMulticastBus};
@@ -297,18 +297,17 @@ fn measure<B: CanBus>(
         .enable()
         .map_err(|e| CliError::failed(format!("enable failed: {e}")))?;
     let outcome = match plan.pacing {
-        // absolute deadlines on a cycle thread of its own, at normal priority for now:
-        // with SCHED_FIFO 80 (`sweep::realtime_setup`) the python-can log test lost
-        // feedback in 1 run of 3 on the idle 2-core VM (59-71 master overruns at 250 Hz,
-        // 0 in 5 runs without it); cause not found yet (the UDP bus's SO_RCVTIMEO waits
-        // are the first suspect), see the issue note
+        // absolute deadlines on a cycle thread of its own, SCHED_FIFO when permitted (a
+        // drive simulated on the same host must answer at real-time priority too:
+        // flexid-vdrive --rt-priority; at normal priority it answers late whenever the
+        // host is busy, and the sweep counts those TPDOs late or lost)
         Pacing::Realtime => {
             run_sweep_on_cycle_thread(
                 &mut drive,
                 plan,
                 &STOP,
                 &mut progress_line,
-                crate::rt::RtSetup::none(),
+                realtime_setup(),
             )
             .0
         }

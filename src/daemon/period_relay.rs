@@ -191,48 +191,79 @@ pub fn spawn_relay(
 mod tests {
     use super::*;
 
-    /// Periods published by a writer thread arrive in order, whole, with their rows.
-    #[test]
-    fn relays_every_published_period_in_order() {
-        let period = 50;
-        let rows = Arc::new(PeriodRows::new(4 * period, 4));
+    /// Runs a relay over `total` rows (row k: torque k, position `position(k)`) that a
+    /// writer publishes every `step` rows (stamped `stamp(rows so far)`), with room for
+    /// `blocks` blocks; returns the events the relay sent.
+    fn relay(
+        name: &str,
+        (period, step, total, blocks): (usize, usize, usize, usize),
+        position: impl Fn(usize) -> f64,
+        stamp: impl Fn(usize) -> u64,
+    ) -> Vec<SweepEvent> {
+        let rows = Arc::new(PeriodRows::new(total, blocks));
         let (tx, mut rx) = mpsc::channel(16);
         let plan = RelayPlan {
             period_samples: period,
             sample_rate_hz: 1000.0,
             estimator: None,
         };
-        let h = spawn_relay("t-relay", rows.clone(), plan, tx).unwrap();
-        for k in 0..4 * period {
-            rows.write(k, k as f64, -(k as f64));
-            if (k + 1) % period == 0 {
-                rows.publish(k + 1, 0, 0, 1000 + k as u64);
+        let h = spawn_relay(name, rows.clone(), plan, tx).unwrap();
+        for k in 0..total {
+            rows.write(k, k as f64, position(k));
+            if (k + 1) % step == 0 {
+                rows.publish(k + 1, 0, 0, stamp(k + 1));
                 h.thread().unpark();
             }
         }
         rows.finish();
         h.thread().unpark();
         h.join().unwrap();
-        let mut n = 0;
-        while let Ok(SweepEvent::Period {
-            index,
-            samples,
-            counters,
-            ..
-        }) = rx.try_recv()
-        {
+        std::iter::from_fn(|| rx.try_recv().ok()).collect()
+    }
+
+    /// The leading period events, each checked to be the next whole period of
+    /// `period` rows: their samples and counters, in order.
+    fn whole_periods(events: Vec<SweepEvent>, period: usize) -> Vec<(SampleBlock, Counters)> {
+        let mut out = Vec::new();
+        for ev in events {
+            let SweepEvent::Period {
+                index,
+                samples,
+                counters,
+                ..
+            } = ev
+            else {
+                break;
+            };
+            let n = out.len();
             assert_eq!(index, n);
             assert_eq!(samples.first_sample, n * period);
             assert_eq!(samples.torque_cmd_nm.len(), period);
+            out.push((samples, counters));
+        }
+        out
+    }
+
+    /// Periods published by a writer thread arrive in order, whole, with their rows.
+    #[test]
+    fn relays_every_published_period_in_order() {
+        let period = 50;
+        let events = relay(
+            "t-relay",
+            (period, period, 4 * period, 4),
+            |k| -(k as f64),
+            |n| 999 + n as u64,
+        );
+        let periods = whole_periods(events, period);
+        for (n, (samples, counters)) in periods.iter().enumerate() {
             assert_eq!(samples.torque_cmd_nm[3], (n * period + 3) as f64);
             assert_eq!(samples.position_rad[3], -((n * period + 3) as f64));
             assert_eq!(
                 counters.period_end_mono_ns,
                 1000 + ((n + 1) * period - 1) as u64
             );
-            n += 1;
         }
-        assert_eq!(n, 4);
+        assert_eq!(periods.len(), 4);
     }
 
     /// Blocks published at another step than the period (a chirp reports every second):
@@ -240,40 +271,18 @@ mod tests {
     #[test]
     fn cuts_unaligned_blocks_into_periods() {
         let (period, step) = (200, 300);
-        let rows = Arc::new(PeriodRows::new(6 * step, 10));
-        let (tx, mut rx) = mpsc::channel(16);
-        let plan = RelayPlan {
-            period_samples: period,
-            sample_rate_hz: 1000.0,
-            estimator: None,
-        };
-        let h = spawn_relay("t-relay2", rows.clone(), plan, tx).unwrap();
-        for k in 0..6 * step {
-            rows.write(k, k as f64, 0.0);
-            if (k + 1) % step == 0 {
-                rows.publish(k + 1, 0, 0, (k + 1) as u64);
-                h.thread().unpark();
-            }
-        }
-        rows.finish();
-        h.thread().unpark();
-        h.join().unwrap();
-        let mut n = 0;
-        while let Ok(SweepEvent::Period {
-            index,
-            samples,
-            counters,
-            ..
-        }) = rx.try_recv()
-        {
-            assert_eq!(index, n);
-            assert_eq!(samples.first_sample, n * period);
-            assert_eq!(samples.torque_cmd_nm.len(), period);
+        let events = relay(
+            "t-relay2",
+            (period, step, 6 * step, 10),
+            |_| 0.0,
+            |n| n as u64,
+        );
+        let periods = whole_periods(events, period);
+        for (n, (_, counters)) in periods.iter().enumerate() {
             let end = (n + 1) * period;
             let stamped = end.div_ceil(step) * step;
             assert_eq!(counters.period_end_mono_ns, stamped as u64, "period {n}");
-            n += 1;
         }
-        assert_eq!(n, 6 * step / period);
+        assert_eq!(periods.len(), 6 * step / period);
     }
 }

@@ -158,6 +158,33 @@ pub fn auth(rb: reqwest::RequestBuilder) -> reqwest::RequestBuilder {
     rb.header("Authorization", format!("Bearer {TOKEN}"))
 }
 
+/// GET `url` with the token: the body as text (whatever the status).
+pub async fn get_text(url: &str) -> String {
+    auth(client().get(url))
+        .send()
+        .await
+        .unwrap()
+        .text()
+        .await
+        .unwrap()
+}
+
+/// GET `url` with the token: the body as JSON.
+pub async fn get_json(url: &str) -> serde_json::Value {
+    let text = get_text(url).await;
+    serde_json::from_str(&text).unwrap_or_else(|e| panic!("{url}: {e}: {text}"))
+}
+
+/// The recording of sweep `id` on the daemon at `base` (`http://ADDR`): its CSV and
+/// sidecar downloaded and read back.
+pub async fn get_recording(base: &str, id: &str) -> flexid::recording::Recording {
+    let csv = get_text(&format!("{base}/api/v1/sweeps/{id}/recording.csv")).await;
+    let side = get_text(&format!("{base}/api/v1/sweeps/{id}/recording.json")).await;
+    flexid::recording::parse_recording(&csv, Some(&side))
+        .unwrap()
+        .recording
+}
+
 /// A sweep request body.
 pub fn body(excitation: &str, periods: usize, duration_s: f64) -> String {
     format!(

@@ -78,11 +78,16 @@ pub struct DaemonProc {
 impl DaemonProc {
     /// Start `flexid` (`bin`) `daemon --config cfg` and wait for its listening line.
     pub fn start(bin: &str, cfg: &Path) -> DaemonProc {
-        let mut child = Command::new(bin)
-            .args(["daemon", "--config"])
-            .arg(cfg)
+        let mut cmd = Command::new(bin);
+        cmd.args(["daemon", "--config"]).arg(cfg);
+        Self::spawn(cmd)
+    }
+
+    /// Spawn `cmd` (a `flexid daemon` command line, stderr inherited unless set) and
+    /// wait for its first stdout line, `flexid daemon: listening on ADDR`.
+    pub fn spawn(mut cmd: Command) -> DaemonProc {
+        let mut child = cmd
             .stdout(Stdio::piped())
-            .stderr(Stdio::inherit())
             .spawn()
             .expect("start flexid daemon");
         let mut out = BufReader::new(child.stdout.take().unwrap());
@@ -91,8 +96,17 @@ impl DaemonProc {
         assert!(!line.is_empty(), "the daemon exited before listening");
         // keep reading so the daemon never blocks on a full pipe
         std::thread::spawn(move || for _ in out.lines() {});
-        let base = format!("http://{}", line.trim().rsplit(' ').next().unwrap());
+        let addr = line
+            .trim()
+            .strip_prefix("flexid daemon: listening on ")
+            .unwrap_or_else(|| panic!("first line: {line:?}"));
+        let base = format!("http://{addr}");
         DaemonProc { child, base }
+    }
+
+    /// The bound address (`ADDR` of `base`).
+    pub fn addr(&self) -> &str {
+        self.base.trim_start_matches("http://")
     }
 
     /// `base` + `path`.

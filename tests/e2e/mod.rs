@@ -68,9 +68,22 @@ impl VDrive {
 
     /// [`VDrive::start`] with `--clock CLOCK` (`lockstep` or `realtime`).
     pub fn start_clocked(bus: &str, plant: &Path, clock: &str) -> VDrive {
+        Self::start_with(bus, plant, clock, &[])
+    }
+
+    /// [`VDrive::start`] serving at `SCHED_FIFO` 70 when permitted (`--rt-priority`):
+    /// the drive for a real-time (`SCHED_FIFO`) master on this host, which holds its
+    /// deadlines while a normal-priority drive would answer late whenever the host is busy.
+    pub fn start_rt(bus: &str, plant: &Path) -> VDrive {
+        Self::start_with(bus, plant, "lockstep", &["--rt-priority", "70"])
+    }
+
+    /// [`VDrive::start_clocked`] with more arguments.
+    pub fn start_with(bus: &str, plant: &Path, clock: &str, more: &[&str]) -> VDrive {
         let mut child = Command::new(vdrive_bin())
             .args(["--bus", bus, "--node", "5", "--clock", clock, "--plant"])
             .arg(plant)
+            .args(more)
             .stdout(Stdio::piped())
             .stderr(Stdio::inherit())
             .spawn()
@@ -149,6 +162,36 @@ pub fn flexid(args: &[&str], limit: Duration) -> Output {
         stdout: to.join().unwrap(),
         stderr: te.join().unwrap(),
     }
+}
+
+/// `flexid sweep --bus BUS --node 5 FLAGS... --out OUT`, as [`flexid`] runs it.
+pub fn sweep_node5(bus: &str, out: &Path, flags: &[&str], limit: Duration) -> Output {
+    let mut args = vec!["sweep", "--bus", bus, "--node", "5"];
+    args.extend_from_slice(flags);
+    args.extend(["--out", out.to_str().unwrap()]);
+    flexid(&args, limit)
+}
+
+/// Watches `watch` for up to `within` after `since` for the first EMCY (8 bytes) of
+/// node 5: how long after `since` it came, and its error code.
+pub fn first_emcy(
+    watch: &mut impl flexid_can::CanBus,
+    since: Instant,
+    within: Duration,
+) -> Option<(Duration, u16)> {
+    while since.elapsed() < within {
+        let Ok(Some(r)) = watch.recv_timeout(Duration::from_millis(50)) else {
+            continue;
+        };
+        let f = r.frame;
+        if f.id() == flexid_can::CanId::Standard(0x085) && f.data().len() == 8 {
+            return Some((
+                since.elapsed(),
+                u16::from_le_bytes([f.data()[0], f.data()[1]]),
+            ));
+        }
+    }
+    None
 }
 
 /// The plant file's chain: (inertias, stiffnesses).

@@ -258,9 +258,10 @@ impl fmt::Display for CanFrame {
 pub struct Received {
     /// The frame.
     pub frame: CanFrame,
-    /// When the frame reached this handle (host monotonic clock, taken in user space
-    /// right after the read returned; for the in-process bus: when it was sent, or under
-    /// [`crate::timing::Paced`] when its transmission ends on the emulated wire).
+    /// When the frame reached this handle (host monotonic clock): for sockets the
+    /// kernel's receive stamp, not the time it was read; for the in-process bus: when it
+    /// was sent, or under [`crate::timing::Paced`] when its transmission ends on the
+    /// emulated wire.
     pub timestamp: Instant,
 }
 

@@ -17,6 +17,7 @@ pub mod frame;
 pub mod inproc;
 pub mod loopback;
 pub mod pycan_wire;
+mod rx_stamp;
 #[cfg(target_os = "linux")]
 pub mod socketcan;
 pub mod spec;

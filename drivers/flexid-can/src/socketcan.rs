@@ -14,7 +14,7 @@
 
 use std::io;
 use std::sync::Arc;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use socketcan::{EmbeddedFrame, ExtendedId, Id, Socket, SocketOptions, StandardId};
 
@@ -64,6 +64,7 @@ impl SocketCanBus {
         socket
             .set_error_filter_accept_all()
             .map_err(err("enable error frames"))?;
+        crate::rx_stamp::enable(std::os::fd::AsRawFd::as_raw_fd(&socket));
         Ok(Self {
             socket,
             name,
@@ -169,7 +170,8 @@ impl CanBus for SocketCanBus {
             }
             Err(e) => return Err(self.io("receive", e)),
         };
-        let timestamp = Instant::now();
+        let timestamp =
+            crate::rx_stamp::last_arrival(std::os::fd::AsRawFd::as_raw_fd(&self.socket));
         let frame = Self::convert(&raw).map_err(|source| BusError::Frame {
             interface: self.name.clone(),
             source,

@@ -37,6 +37,7 @@
 
 use std::io;
 use std::net::{IpAddr, Ipv4Addr, Ipv6Addr, SocketAddr, UdpSocket};
+use std::os::fd::AsRawFd;
 use std::sync::Arc;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
@@ -120,7 +121,6 @@ pub struct UdpMulticastBus {
     dest: SocketAddr,
     /// Where this handle's datagrams come from.
     own: OwnAddr,
-    rx_mode: RxMode,
     stats: BusStats,
     buf: Box<[u8; MAX_DATAGRAM]>,
 }
@@ -137,14 +137,6 @@ impl OwnAddr {
     fn matches(&self, from: SocketAddr) -> bool {
         from.port() == self.port && self.ip.is_none_or(|ip| ip == from.ip())
     }
-}
-
-/// The receive socket's current blocking mode (changed only when the timeout changes).
-#[derive(Debug, Clone, Copy, PartialEq)]
-enum RxMode {
-    Unset,
-    NonBlocking,
-    Timeout(Duration),
 }
 
 impl UdpMulticastBus {
@@ -177,6 +169,8 @@ impl UdpMulticastBus {
             IpAddr::V6(_) => (Ipv6Addr::UNSPECIFIED, config.port).into(),
         };
         rx.bind(&any.into()).map_err(err("bind"))?;
+        rx.set_nonblocking(true).map_err(err("O_NONBLOCK"))?;
+        crate::rx_stamp::enable(rx.as_raw_fd());
         match config.group {
             IpAddr::V4(g) => {
                 rx.join_multicast_v4(&g, &config.interface_v4.unwrap_or(Ipv4Addr::UNSPECIFIED))
@@ -218,7 +212,6 @@ impl UdpMulticastBus {
             tx: tx.into(),
             dest,
             own,
-            rx_mode: RxMode::Unset,
             stats: BusStats::default(),
             buf: Box::new([0; MAX_DATAGRAM]),
         })
@@ -265,24 +258,6 @@ impl UdpMulticastBus {
         }
         Ok(tx)
     }
-
-    fn set_rx_mode(&mut self, mode: RxMode) -> io::Result<()> {
-        if mode == self.rx_mode {
-            return Ok(());
-        }
-        match mode {
-            RxMode::NonBlocking => self.rx.set_nonblocking(true)?,
-            RxMode::Timeout(t) => {
-                if matches!(self.rx_mode, RxMode::NonBlocking | RxMode::Unset) {
-                    self.rx.set_nonblocking(false)?;
-                }
-                self.rx.set_read_timeout(Some(t))?;
-            }
-            RxMode::Unset => {}
-        }
-        self.rx_mode = mode;
-        Ok(())
-    }
 }
 
 /// Decodes one datagram as [`UdpMulticastBus`] does: `Ok(None)` for valid messages that
@@ -302,6 +277,28 @@ pub fn decode_datagram(
             reason,
         }),
     }
+}
+
+/// Waits up to `left` for `fd` to be readable (ppoll: microsecond timeouts, no tick
+/// rounding). A signal ends the wait early (not an error).
+fn wait_readable(fd: std::os::fd::RawFd, left: Duration) -> io::Result<()> {
+    let mut pfd = libc::pollfd {
+        fd,
+        events: libc::POLLIN,
+        revents: 0,
+    };
+    let ts = libc::timespec {
+        tv_sec: left.as_secs().min(i32::MAX as u64) as libc::time_t,
+        tv_nsec: left.subsec_nanos() as libc::c_long,
+    };
+    // SAFETY: one valid pollfd, a valid timespec, no signal mask.
+    if unsafe { libc::ppoll(&mut pfd, 1, &ts, std::ptr::null()) } < 0 {
+        let e = io::Error::last_os_error();
+        if e.kind() != io::ErrorKind::Interrupted {
+            return Err(e);
+        }
+    }
+    Ok(())
 }
 
 fn rx_error(interface: &Arc<str>, source: io::Error) -> BusError {
@@ -344,40 +341,32 @@ impl CanBus for UdpMulticastBus {
     }
 
     fn recv_timeout(&mut self, timeout: Duration) -> Result<Option<Received>, BusError> {
+        // The socket is non-blocking; waits are ppoll(2), kept to the microsecond.
+        // (SO_RCVTIMEO, which this used, rounds up to scheduler ticks: a 100 us wait took
+        // 8 ms at HZ=250, two whole cycles at 250 Hz, each time a TPDO was missing.)
         let deadline = Instant::now().checked_add(timeout);
         loop {
-            let left = match deadline {
-                Some(d) => d.saturating_duration_since(Instant::now()),
-                None => Duration::from_secs(24 * 3600),
-            };
-            let mode = if left.is_zero() {
-                RxMode::NonBlocking
-            } else {
-                RxMode::Timeout(left)
-            };
-            self.set_rx_mode(mode)
-                .map_err(|e| rx_error(&self.name, e))?;
             let (len, from) = match self.rx.recv_from(&mut self.buf[..]) {
                 Ok(x) => x,
-                Err(e)
-                    if matches!(
-                        e.kind(),
-                        io::ErrorKind::WouldBlock | io::ErrorKind::TimedOut
-                    ) =>
-                {
-                    if mode == RxMode::NonBlocking || deadline.is_some_and(|d| Instant::now() >= d)
-                    {
+                Err(e) if e.kind() == io::ErrorKind::WouldBlock => {
+                    let left = match deadline {
+                        Some(d) => d.saturating_duration_since(Instant::now()),
+                        None => Duration::from_secs(24 * 3600),
+                    };
+                    if left.is_zero() {
                         return Ok(None);
                     }
-                    continue; // woken early: wait for the rest
+                    wait_readable(self.rx.as_raw_fd(), left)
+                        .map_err(|e| rx_error(&self.name, e))?;
+                    continue; // readable, woken early or interrupted: read again
                 }
                 Err(e) if e.kind() == io::ErrorKind::Interrupted => continue,
                 Err(e) => return Err(rx_error(&self.name, e)),
             };
-            let timestamp = Instant::now();
             if !self.config.receive_own && self.own.matches(from) {
                 continue;
             }
+            let timestamp = crate::rx_stamp::last_arrival(self.rx.as_raw_fd());
             match decode_datagram(&self.name, &self.buf[..len], from) {
                 Ok(Some(frame)) if frame.is_error() => {
                     self.stats.error_frames += 1;

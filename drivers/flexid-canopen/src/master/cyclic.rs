@@ -5,7 +5,7 @@ use std::time::{Duration, Instant};
 
 use flexid_can::CanBus;
 
-use super::exchange::{Event, Exchange, Phase};
+use super::exchange::{Event, Exchange};
 use super::{emcy_text, Configured, Drive, Enabled, Link, MasterError};
 use crate::cia402::{next_controlword, Controlword, State, Statusword, Target};
 use crate::cob;
@@ -49,7 +49,7 @@ impl<B: CanBus> Link<B> {
         loop {
             match self.bus.recv_timeout(Duration::ZERO) {
                 Ok(Some(r)) => {
-                    let ev = self.exchange.on_frame(&r.frame, Phase::Drain);
+                    let ev = self.exchange.on_frame(&r.frame, r.timestamp);
                     self.on_event(ev, mode)?;
                 }
                 Ok(None) => break,
@@ -65,6 +65,8 @@ impl<B: CanBus> Link<B> {
         let [rpdo, sync] = self.exchange.begin(controlword.0, torque_permille);
         self.send(&rpdo, "sending RPDO1")?;
         let sync_time = self.now();
+        // frames that arrived before this instant answer an earlier SYNC (see exchange)
+        self.exchange.sync_sent(sync_time);
         self.send(&sync, "sending SYNC")?;
         self.last_cw = controlword;
         while !self.exchange.complete() {
@@ -74,7 +76,7 @@ impl<B: CanBus> Link<B> {
             }
             match self.bus.recv_timeout(left) {
                 Ok(Some(r)) => {
-                    let ev = self.exchange.on_frame(&r.frame, Phase::Wait);
+                    let ev = self.exchange.on_frame(&r.frame, r.timestamp);
                     self.on_event(ev, mode)?;
                 }
                 Ok(None) => {}

@@ -2,7 +2,7 @@
 //!
 //! ```text
 //! flexid-vdrive --bus udp[:GROUP[:PORT]] | socketcan:IFACE [--node 5] [--plant P.toml]
-//!               [--clock lockstep|realtime] [--bitrate 1000000]
+//!               [--clock lockstep|realtime] [--bitrate 1000000] [--rt-priority 70]
 //! ```
 //!
 //! Prints `flexid-vdrive: node N ready on BUS` on stdout once the boot-up frame is sent;
@@ -55,6 +55,28 @@ struct Cli {
     /// Seed of the plant's noise (nonlinear plant with [effects] only).
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// Serve the bus with `SCHED_FIFO` at this priority (1..=99) when permitted, as a
+    /// drive's firmware answers a SYNC from its own real-time loop (next to a real-time
+    /// master on a loaded host, a normal-priority drive answers late); refused: normal
+    /// priority, said on stderr.
+    #[arg(long, value_parser = clap::value_parser!(u8).range(1..=99))]
+    rt_priority: Option<u8>,
+}
+
+/// Applies `--rt-priority` to the calling (serving) thread; says what was granted.
+fn real_time(priority: Option<u8>) {
+    let Some(p) = priority else { return };
+    let setup = flexid::rt::RtSetup {
+        fifo_priority: Some(p),
+        lock_memory: false,
+        cpu: None,
+    };
+    match setup.apply() {
+        g if g.fifo_priority.is_some() => {
+            eprintln!("flexid-vdrive: serving with SCHED_FIFO priority {p}")
+        }
+        g => eprintln!("flexid-vdrive: {}", g.refused.join("; ")),
+    }
 }
 
 fn serve<B: CanBus>(bus: B, plant: &DrivePlant, clock: ClockMode, seed: u64) -> ExitCode {
@@ -126,6 +148,7 @@ fn main() -> ExitCode {
         libc::signal(libc::SIGTERM, on_signal as *const () as libc::sighandler_t);
         libc::signal(libc::SIGINT, on_signal as *const () as libc::sighandler_t);
     }
+    real_time(cli.rt_priority);
     let clock = match cli.clock {
         Clock::Lockstep => ClockMode::LockStep,
         Clock::Realtime => ClockMode::RealTime,

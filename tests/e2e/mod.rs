@@ -68,9 +68,15 @@ impl VDrive {
 
     /// [`VDrive::start`] with `--clock CLOCK` (`lockstep` or `realtime`).
     pub fn start_clocked(bus: &str, plant: &Path, clock: &str) -> VDrive {
+        Self::start_with(bus, plant, clock, &[])
+    }
+
+    /// [`VDrive::start_clocked`] with more arguments (e.g. `--fifo-priority 85`).
+    pub fn start_with(bus: &str, plant: &Path, clock: &str, extra: &[&str]) -> VDrive {
         let mut child = Command::new(vdrive_bin())
             .args(["--bus", bus, "--node", "5", "--clock", clock, "--plant"])
             .arg(plant)
+            .args(extra)
             .stdout(Stdio::piped())
             .stderr(Stdio::inherit())
             .spawn()

@@ -285,6 +285,31 @@ impl UdpMulticastBus {
     }
 }
 
+/// Waits until `socket` is readable or `timeout` has passed (`ppoll`: an hrtimer, not
+/// rounded to jiffies; a signal ends the wait early, as a timeout does).
+#[cfg(target_os = "linux")]
+fn wait_readable(socket: &UdpSocket, timeout: Duration) -> io::Result<()> {
+    use std::os::fd::AsRawFd;
+    let mut fd = libc::pollfd {
+        fd: socket.as_raw_fd(),
+        events: libc::POLLIN,
+        revents: 0,
+    };
+    let ts = libc::timespec {
+        tv_sec: timeout.as_secs().min(i64::MAX as u64) as libc::time_t,
+        tv_nsec: timeout.subsec_nanos() as libc::c_long,
+    };
+    // SAFETY: one valid pollfd, a valid timespec, no signal mask.
+    let r = unsafe { libc::ppoll(&mut fd, 1, &ts, std::ptr::null()) };
+    if r < 0 {
+        let e = io::Error::last_os_error();
+        if e.kind() != io::ErrorKind::Interrupted {
+            return Err(e);
+        }
+    }
+    Ok(())
+}
+
 /// Decodes one datagram as [`UdpMulticastBus`] does: `Ok(None)` for valid messages that
 /// this bus does not carry (CAN FD), [`BusError::Malformed`] for the rest.
 pub fn decode_datagram(
@@ -350,7 +375,10 @@ impl CanBus for UdpMulticastBus {
                 Some(d) => d.saturating_duration_since(Instant::now()),
                 None => Duration::from_secs(24 * 3600),
             };
-            let mode = if left.is_zero() {
+            // Linux: the socket stays non-blocking and a wait is a `ppoll` to the exact
+            // time left (an hrtimer). `SO_RCVTIMEO` rounds a wait up to whole jiffies
+            // (4 ms at HZ = 250): a TPDO wait that ran out would end several cycles late.
+            let mode = if left.is_zero() || cfg!(target_os = "linux") {
                 RxMode::NonBlocking
             } else {
                 RxMode::Timeout(left)
@@ -365,11 +393,16 @@ impl CanBus for UdpMulticastBus {
                         io::ErrorKind::WouldBlock | io::ErrorKind::TimedOut
                     ) =>
                 {
-                    if mode == RxMode::NonBlocking || deadline.is_some_and(|d| Instant::now() >= d)
+                    let left = deadline.map_or(Duration::from_secs(24 * 3600), |d| {
+                        d.saturating_duration_since(Instant::now())
+                    });
+                    if left.is_zero() || (mode == RxMode::NonBlocking && !cfg!(target_os = "linux"))
                     {
                         return Ok(None);
                     }
-                    continue; // woken early: wait for the rest
+                    #[cfg(target_os = "linux")]
+                    wait_readable(&self.rx, left).map_err(|e| rx_error(&self.name, e))?;
+                    continue; // readable, or woken early: try again
                 }
                 Err(e) if e.kind() == io::ErrorKind::Interrupted => continue,
                 Err(e) => return Err(rx_error(&self.name, e)),

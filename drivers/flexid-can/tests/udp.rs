@@ -136,7 +136,11 @@ fn short_timeouts_end_near_their_deadline() {
         })
         .collect();
     over.sort();
-    assert!(over[10] < Duration::from_millis(1), "median overshoot {:?}", over[10]);
+    assert!(
+        over[10] < Duration::from_millis(1),
+        "median overshoot {:?}",
+        over[10]
+    );
 }
 
 #[test]

@@ -285,31 +285,6 @@ impl UdpMulticastBus {
     }
 }
 
-/// Waits until `socket` is readable or `timeout` has passed (`ppoll`: an hrtimer, not
-/// rounded to jiffies; a signal ends the wait early, as a timeout does).
-#[cfg(target_os = "linux")]
-fn wait_readable(socket: &UdpSocket, timeout: Duration) -> io::Result<()> {
-    use std::os::fd::AsRawFd;
-    let mut fd = libc::pollfd {
-        fd: socket.as_raw_fd(),
-        events: libc::POLLIN,
-        revents: 0,
-    };
-    let ts = libc::timespec {
-        tv_sec: timeout.as_secs().min(i64::MAX as u64) as libc::time_t,
-        tv_nsec: timeout.subsec_nanos() as libc::c_long,
-    };
-    // SAFETY: one valid pollfd, a valid timespec, no signal mask.
-    let r = unsafe { libc::ppoll(&mut fd, 1, &ts, std::ptr::null()) };
-    if r < 0 {
-        let e = io::Error::last_os_error();
-        if e.kind() != io::ErrorKind::Interrupted {
-            return Err(e);
-        }
-    }
-    Ok(())
-}
-
 /// Decodes one datagram as [`UdpMulticastBus`] does: `Ok(None)` for valid messages that
 /// this bus does not carry (CAN FD), [`BusError::Malformed`] for the rest.
 pub fn decode_datagram(
@@ -401,7 +376,8 @@ impl CanBus for UdpMulticastBus {
                         return Ok(None);
                     }
                     #[cfg(target_os = "linux")]
-                    wait_readable(&self.rx, left).map_err(|e| rx_error(&self.name, e))?;
+                    crate::poll::wait_readable(std::os::fd::AsRawFd::as_raw_fd(&self.rx), left)
+                        .map_err(|e| rx_error(&self.name, e))?;
                     continue; // readable, or woken early: try again
                 }
                 Err(e) if e.kind() == io::ErrorKind::Interrupted => continue,

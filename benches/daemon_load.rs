@@ -1,22 +1,39 @@
-//! The daemon under load (`scripts/bench.sh` runs it; see the README's daemon section):
-//! the real `flexid daemon` (CANopen backend, real-time clock, 1 kHz unless `--rate-hz`) with one and then
-//! two axes sweeping on real `flexid-vdrive`s (`--clock realtime`, each on its own UDP
-//! bus), against the same daemon idle in the same run.
+//! The daemon under load (`scripts/bench.sh` runs it; see the README's "Daemon load"): the
+//! real `flexid daemon` (CANopen backend, `clock = "monotonic"`) with one and then two axes
+//! sweeping on real `flexid-vdrive`s (`--clock realtime`, each on its own UDP bus), against
+//! the same daemon idle in the same run, at 1, 2 and 4 kHz.
 //!
-//! Reported:
+//! Reported per rate and number of sweeping axes:
 //!
 //! * the daemon process's CPU time per second of wall time (`/proc/PID/stat` utime+stime)
-//!   while idle, with 1 axis and with 2 axes sweeping, and per axis
-//!   `(share(N) - share(idle)) / N`;
+//!   and per axis `(share(N) - share(idle)) / N`;
 //! * the time from the end of a period on the cycle thread (`CLOCK_MONOTONIC`, carried in
 //!   the progress event's `counters.period_end_mono_ns`) to the arrival of that period's
-//!   Bode update on the SSE stream at this client (same clock, same host): p50, p99, max;
-//! * how each sweep ended and its cycle timing (late wake-ups, overruns, lost TPDOs).
+//!   Bode update on the SSE stream at this client (same clock, same host): p50, p99;
+//! * the wake-up lateness of the daemon's cycle thread (p50/p99/p99.9/max, from the
+//!   sweep's sidecar `cycle_timing`; with two axes the worse axis per percentile) next to
+//!   that of a **bare loop** in this process that only sleeps to absolute deadlines of the
+//!   same period with the same skip policy, under the same real-time setup the daemon asks
+//!   for its cycle thread (`SCHED_FIFO` 80, locked memory), over the same wall time as the
+//!   sweeps (started before the first request, stopped after the last `ended` event);
+//! * the host's stalls in the same window: the share of the bare loop's wake-ups more than
+//!   half a period late (an overrun for the cycle, and its feedback likely lost);
+//! * how each sweep ended (late wake-ups, overruns, lost TPDOs). A measurement in which a
+//!   sweep stopped (the feedback-loss supervisor on a host that stalls) is repeated up to
+//!   2 times (`--quick`: once); the table shows the last attempt, the notes every earlier
+//!   one.
+//!
+//! The drives: `flexid-vdrive` answers every SYNC from its receive path (no cycle timer of
+//! its own) and serves its bus under `SCHED_FIFO` 85 (`--fifo-priority`), standing for a
+//! drive's firmware. The bus: `udp` with `bitrate = 1000000` (classic CAN) where the
+//! default mapping is admitted (1 kHz: 38 % load), else `bitrate = 100000000`, a udp bus
+//! standing for an EtherCAT-class transport (2 and 4 kHz do not fit 1 Mbit/s: 76 % and
+//! 145 %). The UDP bus emulates no wire time in either case.
 //!
 //! Printed and written to `target/bench/daemon_load.md`. Arguments: `[--quick]
-//! [--rate-hz HZ] [--out FILE]`
-//! (`--quick`: 3 s sweeps of 0.25 s periods instead of 10 s; other arguments, e.g. cargo's
-//! `--bench`, are ignored). Skips (exit 0, a message) when 239.0.0.0/8 is not on `lo`.
+//! [--rate-hz HZ]... [--out FILE]` (`--quick`: 3 s sweeps of 0.25 s periods instead of 10 s;
+//! `--rate-hz` once or more: only those rates; other arguments, e.g. cargo's `--bench`,
+//! are ignored). Skips (exit 0, a message) when 239.0.0.0/8 is not on `lo`.
 
 #[path = "../tests/daemon_common/mod.rs"]
 mod daemon_common;
@@ -26,13 +43,23 @@ mod e2e;
 use daemon_common::process::{canopen_config, CanAxis, DaemonProc, GROUP};
 use daemon_common::{auth, client, start_sweep_at, token_file, Sse};
 use e2e::{loopback_multicast, plant_path, VDrive, FLEXID};
-use flexid::rt::clock;
+use flexid::daemon::canopen_backend::CYCLE_FIFO_PRIORITY;
+use flexid::rt::{clock, LatencySummary, RtGranted, RtSetup, TimingStats};
 use std::fmt::Write as _;
 use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-/// Default cycle rate [Hz] (`--rate-hz` changes it).
-const RATE_HZ: f64 = 1000.0;
+/// Cycle rates measured by default [Hz].
+const RATES_HZ: [f64; 3] = [1000.0, 2000.0, 4000.0];
+/// `SCHED_FIFO` priority of the `flexid-vdrive` processes (above the cycle thread's 80: a
+/// drive's firmware answers whatever the master's host does).
+const VDRIVE_FIFO_PRIORITY: &str = "85";
+/// Classic CAN [bit/s].
+const CAN_BITRATE: u32 = 1_000_000;
+/// A udp bus standing for an EtherCAT-class transport [bit/s].
+const FAST_BITRATE: u32 = 100_000_000;
 
 /// utime + stime of `pid` [ns].
 fn process_cpu_ns(pid: u32) -> u64 {
@@ -45,6 +72,46 @@ fn process_cpu_ns(pid: u32) -> u64 {
     // SAFETY: sysconf has no preconditions.
     let hz = unsafe { libc::sysconf(libc::_SC_CLK_TCK) }.max(1) as u64;
     (ticks(11) + ticks(12)) * 1_000_000_000 / hz
+}
+
+/// A bare loop on a thread of its own: sleeps to absolute deadlines of `period_ns` with
+/// the sweep's skip policy (a wake-up more than half a period late restarts the slots
+/// from now) and records the lateness from the deadline it waited for, until `stop`.
+struct BareLoop {
+    stop: Arc<AtomicBool>,
+    thread: std::thread::JoinHandle<(TimingStats, RtGranted)>,
+}
+
+impl BareLoop {
+    fn start(period_ns: u64, setup: RtSetup) -> BareLoop {
+        let stop = Arc::new(AtomicBool::new(false));
+        let flag = stop.clone();
+        let thread = std::thread::Builder::new()
+            .name("bare-loop".into())
+            .spawn(move || {
+                let granted = setup.apply();
+                let mut stats = TimingStats::new(period_ns);
+                let mut slot = clock::now_ns();
+                while !flag.load(Ordering::Relaxed) {
+                    let now = clock::now_ns();
+                    if now > slot + period_ns / 2 {
+                        slot = now;
+                        stats.overruns += 1;
+                    }
+                    slot += period_ns;
+                    clock::sleep_until_ns(slot);
+                    stats.record_wakeup(clock::now_ns().saturating_sub(slot), 0);
+                }
+                (stats, granted)
+            })
+            .expect("spawn the bare loop");
+        BareLoop { stop, thread }
+    }
+
+    fn stop(self) -> (TimingStats, RtGranted) {
+        self.stop.store(true, Ordering::Relaxed);
+        self.thread.join().expect("bare loop")
+    }
 }
 
 /// Reads one sweep's SSE stream; returns the end-of-period -> Bode latencies [ns] and the
@@ -96,12 +163,252 @@ async fn follow(base: String, id: String) -> (Vec<u64>, Sse) {
     panic!("sweep {id}: the event stream closed before its end");
 }
 
-fn pct(sorted: &[u64], q: f64) -> f64 {
+fn pct_ms(sorted: &[u64], q: f64) -> f64 {
     if sorted.is_empty() {
         return f64::NAN;
     }
     let i = ((sorted.len() - 1) as f64 * q).round() as usize;
     sorted[i] as f64 / 1e6
+}
+
+/// `p50 / p99 / p99.9 / max` in µs.
+fn lateness_us(s: &LatencySummary) -> String {
+    let us = |ns: u64| ns as f64 / 1e3;
+    format!(
+        "{:.0} / {:.0} / {:.0} / {:.0}",
+        us(s.p50_ns),
+        us(s.p99_ns),
+        us(s.p999_ns),
+        us(s.max_ns)
+    )
+}
+
+/// The percentile-wise worse of two lateness summaries.
+fn worse(a: LatencySummary, b: &LatencySummary) -> LatencySummary {
+    LatencySummary {
+        count: a.count + b.count,
+        p50_ns: a.p50_ns.max(b.p50_ns),
+        p99_ns: a.p99_ns.max(b.p99_ns),
+        p999_ns: a.p999_ns.max(b.p999_ns),
+        max_ns: a.max_ns.max(b.max_ns),
+        mean_ns: a.mean_ns.max(b.mean_ns),
+    }
+}
+
+/// One rate: vdrives and daemon started afresh; the table rows (idle, 1 axis, 2 axes).
+async fn run_rate(rate_hz: f64, quick: bool, notes: &mut Vec<String>) -> String {
+    let (duration_s, periods, idle_s, attempts) = if quick {
+        (3.0, 11, 2.0, 2)
+    } else {
+        (10.0, 39, 5.0, 3)
+    };
+    let body = format!(
+        r#"{{"excitation":"multisine","band_hz":[4,{hi}],"amplitude_nm":0.3,"periods":{periods},"duration_s":{duration_s}}}"#,
+        hi = (0.3 * rate_hz).round()
+    );
+    let bitrate = if flexid::sweep::admission_check(rate_hz, CAN_BITRATE).is_ok() {
+        CAN_BITRATE
+    } else {
+        FAST_BITRATE
+    };
+    let bus = if bitrate == CAN_BITRATE {
+        "udp, 1 Mbit/s (CAN)".to_string()
+    } else {
+        "udp, 100 Mbit/s (EtherCAT-class)".to_string()
+    };
+    let ports = [43331u16, 43332];
+    let _vds: Vec<VDrive> = ports
+        .iter()
+        .map(|p| {
+            VDrive::start_with(
+                &format!("udp:{GROUP}:{p}"),
+                &plant_path(),
+                "realtime",
+                &["--fifo-priority", VDRIVE_FIFO_PRIORITY],
+            )
+        })
+        .collect();
+    let tmp = tempfile::tempdir().unwrap();
+    let token = token_file(tmp.path(), 0o600);
+    let axes: Vec<CanAxis> = ["b1", "b2"]
+        .iter()
+        .zip(ports)
+        .map(|(n, p)| {
+            let mut a = CanAxis::new(n, p);
+            a.clock = "monotonic";
+            a.cycle_hz = rate_hz;
+            a.bitrate = bitrate;
+            a
+        })
+        .collect();
+    let cfg = canopen_config(tmp.path(), &token, &axes, "");
+    let d = DaemonProc::start(FLEXID, &cfg);
+    let pid = d.child.id();
+    // let the start-up settle
+    tokio::time::sleep(Duration::from_millis(500)).await;
+    let rate = format!("{} kHz", rate_hz / 1000.0);
+
+    let mut rows = String::new();
+    let c0 = process_cpu_ns(pid);
+    let t0 = Instant::now();
+    tokio::time::sleep(Duration::from_secs_f64(idle_s)).await;
+    let idle = (process_cpu_ns(pid) - c0) as f64 / t0.elapsed().as_nanos() as f64;
+    let _ = writeln!(
+        rows,
+        "| {rate} | {bus} | 0 (idle) | {:.1} % | - | - | - | - | - | - | - | - |",
+        100.0 * idle
+    );
+    let period_ns = (1e9 / rate_hz).round() as u64;
+    for n in [1usize, 2] {
+        let mut failed = Vec::new();
+        let mut t = trial(&d, &axes[..n], &body, period_ns).await;
+        while !t.all_completed() && failed.len() + 1 < attempts {
+            failed.push(t.how.join("; "));
+            t = trial(&d, &axes[..n], &body, period_ns).await;
+        }
+        let share = t.cpu_ns as f64 / t.wall.as_nanos() as f64;
+        let bare_sum = t.bare.lateness.summary();
+        let (cycle_txt, ratio) = match &t.cycle {
+            Some(c) => (
+                lateness_us(c),
+                format!(
+                    "**{:.2}x**",
+                    c.p99_ns as f64 / bare_sum.p99_ns.max(1) as f64
+                ),
+            ),
+            None => ("-".to_string(), "-".to_string()),
+        };
+        let stalls = 100.0 * t.bare.overruns as f64 / bare_sum.count.max(1) as f64;
+        let tries = if failed.is_empty() {
+            String::new()
+        } else {
+            format!(" [attempt {} of {attempts}]", failed.len() + 1)
+        };
+        let _ = writeln!(
+            rows,
+            "| {rate} | {bus} | {n} | {:.1} % | {:.1} % | {:.1} ms | {:.1} ms | {cycle_txt} | {} | {ratio} | {stalls:.2} % | {}{tries} |",
+            100.0 * share,
+            100.0 * (share - idle) / n as f64,
+            pct_ms(&t.bode_ns, 0.5),
+            pct_ms(&t.bode_ns, 0.99),
+            lateness_us(&bare_sum),
+            t.how.join("; ")
+        );
+        let daemon_prio = t
+            .fifo
+            .iter()
+            .map(|p| p.map_or("normal".to_string(), |p| format!("FIFO {p}")))
+            .collect::<Vec<_>>()
+            .join(", ");
+        let mut note = format!(
+            "{rate}, {n} axis: {} Bode updates timed; {} bare-loop wake-ups; cycle thread(s) \
+             {daemon_prio}, bare loop {}",
+            t.bode_ns.len(),
+            bare_sum.count,
+            t.bare_granted
+                .fifo_priority
+                .map_or("normal".to_string(), |p| format!("FIFO {p}")),
+        );
+        for (i, f) in failed.iter().enumerate() {
+            let _ = write!(note, "; attempt {}: {f}", i + 1);
+        }
+        notes.push(note);
+    }
+    rows
+}
+
+/// One measurement: `axes` sweeping at once, a bare loop alongside.
+struct Trial {
+    /// Daemon CPU time over `wall` [ns].
+    cpu_ns: u64,
+    wall: Duration,
+    /// Period end -> Bode latencies, sorted [ns].
+    bode_ns: Vec<u64>,
+    /// The cycle threads' lateness (the worse axis per percentile).
+    cycle: Option<LatencySummary>,
+    /// The cycle threads' `SCHED_FIFO` priorities.
+    fifo: Vec<Option<u64>>,
+    bare: TimingStats,
+    bare_granted: RtGranted,
+    /// How each sweep ended.
+    how: Vec<String>,
+    completed: usize,
+}
+
+impl Trial {
+    fn all_completed(&self) -> bool {
+        self.completed == self.how.len()
+    }
+}
+
+async fn trial(d: &DaemonProc, axes: &[CanAxis<'_>], body: &str, period_ns: u64) -> Trial {
+    let pid = d.child.id();
+    let bare = BareLoop::start(period_ns, RtSetup::realtime(CYCLE_FIFO_PRIORITY));
+    let mut ids = Vec::new();
+    let c0 = process_cpu_ns(pid);
+    let t0 = Instant::now();
+    for a in axes {
+        ids.push(start_sweep_at(&d.base, a.name, body).await);
+    }
+    let joins: Vec<_> = ids
+        .iter()
+        .map(|id| tokio::spawn(follow(d.base.clone(), id.clone())))
+        .collect();
+    let mut bode_ns = Vec::new();
+    let mut ends = Vec::new();
+    for j in joins {
+        let (l, e) = j.await.unwrap();
+        bode_ns.extend(l);
+        ends.push(e);
+    }
+    let wall = t0.elapsed();
+    let cpu_ns = process_cpu_ns(pid) - c0;
+    let (bare, bare_granted) = bare.stop();
+    bode_ns.sort_unstable();
+    let mut t = Trial {
+        cpu_ns,
+        wall,
+        bode_ns,
+        cycle: None,
+        fifo: Vec::new(),
+        bare,
+        bare_granted,
+        how: Vec::new(),
+        completed: 0,
+    };
+    for (id, e) in ids.iter().zip(&ends) {
+        let sc: serde_json::Value =
+            auth(client().get(d.url(&format!("/api/v1/sweeps/{id}/recording.json"))))
+                .send()
+                .await
+                .unwrap()
+                .json()
+                .await
+                .unwrap_or_default();
+        let ct = &sc["cycle_timing"];
+        if let Ok(s) = serde_json::from_value::<LatencySummary>(ct["lateness"].clone()) {
+            t.cycle = Some(match t.cycle {
+                Some(c) => worse(c, &s),
+                None => s,
+            });
+        }
+        t.fifo.push(ct["fifo_priority"].as_u64());
+        let outcome = e.data["outcome"].as_str().unwrap_or("?");
+        let why = if outcome == "completed" {
+            t.completed += 1;
+            String::new()
+        } else {
+            format!(
+                ": {}",
+                e.data["reason"].as_str().unwrap_or("?").replace('|', "/")
+            )
+        };
+        t.how.push(format!(
+            "{outcome}{why} ({} late, {} overruns, {} lost TPDOs)",
+            ct["late_wakeups"], ct["overruns"], sc["cycle_counters"]["lost"],
+        ));
+    }
+    t
 }
 
 #[tokio::main(flavor = "multi_thread", worker_threads = 2)]
@@ -117,112 +424,33 @@ async fn main() {
     if !loopback_multicast() {
         return;
     }
-    let rate_hz: f64 = args
-        .iter()
-        .position(|a| a == "--rate-hz")
-        .and_then(|i| args.get(i + 1))
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(RATE_HZ);
-    let (duration_s, periods) = if quick { (3.0, 11) } else { (10.0, 39) };
-    let body = format!(
-        r#"{{"excitation":"multisine","band_hz":[4,{hi}],"amplitude_nm":0.3,"periods":{periods},"duration_s":{duration_s}}}"#,
-        hi = (0.3 * rate_hz).round()
-    );
-    let ports = [43331u16, 43332];
-    let _vds: Vec<VDrive> = ports
-        .iter()
-        .map(|p| VDrive::start_clocked(&format!("udp:{GROUP}:{p}"), &plant_path(), "realtime"))
+    let mut rates: Vec<f64> = args
+        .windows(2)
+        .filter(|w| w[0] == "--rate-hz")
+        .filter_map(|w| w[1].parse().ok())
         .collect();
-    let tmp = tempfile::tempdir().unwrap();
-    let token = token_file(tmp.path(), 0o600);
-    let axes: Vec<CanAxis> = ["b1", "b2"]
-        .iter()
-        .zip(ports)
-        .map(|(n, p)| {
-            let mut a = CanAxis::new(n, p);
-            a.clock = "monotonic";
-            a.cycle_hz = rate_hz;
-            a
-        })
-        .collect();
-    let cfg = canopen_config(tmp.path(), &token, &axes, "");
-    let d = DaemonProc::start(FLEXID, &cfg);
-    let pid = d.child.id();
-    // let the start-up settle
-    tokio::time::sleep(Duration::from_millis(500)).await;
-
+    if rates.is_empty() {
+        rates = RATES_HZ.to_vec();
+    }
+    let load = std::fs::read_to_string("/proc/loadavg").unwrap_or_default();
     let mut report = String::new();
     let _ = writeln!(
         report,
-        "# Daemon load (CANopen backend, {rate_hz} Hz real time, flexid-vdrive --clock realtime)\n\n\
-         {duration_s} s sweeps of {periods}+1 periods; CPU = daemon process CPU time / wall time.\n"
-    );
-    // idle reference
-    let c0 = process_cpu_ns(pid);
-    let t0 = Instant::now();
-    tokio::time::sleep(Duration::from_secs_f64(duration_s)).await;
-    let idle = (process_cpu_ns(pid) - c0) as f64 / t0.elapsed().as_nanos() as f64;
-    let _ = writeln!(
-        report,
-        "| axes sweeping | daemon CPU share | per axis (minus idle) | period end -> Bode p50 | p99 | max | sweeps |\n\
-         |---|---|---|---|---|---|---|\n| 0 (idle) | {:.2} % | - | - | - | - | - |",
-        100.0 * idle
+        "# Daemon load (CANopen backend, real time; flexid-vdrive --clock realtime --fifo-priority {VDRIVE_FIFO_PRIORITY})\n\n\
+         {} s sweeps; CPU = daemon process CPU time / wall time; lateness in µs \
+         (p50 / p99 / p99.9 / max; 2 axes: the worse axis); host stalls = bare-loop wake-ups \
+         more than half a period late; load average at the start: {}\n\n\
+         | rate | bus | axes sweeping | daemon CPU | per axis (minus idle) | period end -> Bode p50 | p99 | cycle thread lateness | bare loop lateness | p99 cycle/bare | host stalls | sweeps |\n\
+         |---|---|---|---|---|---|---|---|---|---|---|---|",
+        if quick { 3 } else { 10 },
+        load.split_whitespace().take(3).collect::<Vec<_>>().join(" ")
     );
     let mut notes = Vec::new();
-    for n in [1usize, 2] {
-        let mut ids = Vec::new();
-        let c0 = process_cpu_ns(pid);
-        let t0 = Instant::now();
-        for a in &axes[..n] {
-            ids.push(start_sweep_at(&d.base, a.name, &body).await);
-        }
-        let joins: Vec<_> = ids
-            .iter()
-            .map(|id| tokio::spawn(follow(d.base.clone(), id.clone())))
-            .collect();
-        let mut lat = Vec::new();
-        let mut ends = Vec::new();
-        for j in joins {
-            let (l, e) = j.await.unwrap();
-            lat.extend(l);
-            ends.push(e);
-        }
-        let wall = t0.elapsed();
-        let share = (process_cpu_ns(pid) - c0) as f64 / wall.as_nanos() as f64;
-        lat.sort_unstable();
-        let mut how = Vec::new();
-        for (id, e) in ids.iter().zip(&ends) {
-            let sc: serde_json::Value =
-                auth(client().get(d.url(&format!("/api/v1/sweeps/{id}/recording.json"))))
-                    .send()
-                    .await
-                    .unwrap()
-                    .json()
-                    .await
-                    .unwrap_or_default();
-            let t = &sc["cycle_timing"];
-            how.push(format!(
-                "{} ({} late wake-ups, {} overruns, {} lost TPDOs, p99 lateness {:.0} us)",
-                e.data["outcome"].as_str().unwrap_or("?"),
-                t["late_wakeups"],
-                t["overruns"],
-                sc["cycle_counters"]["lost"],
-                t["lateness"]["p99_ns"].as_f64().unwrap_or(f64::NAN) / 1e3
-            ));
-        }
-        let _ = writeln!(
-            report,
-            "| {n} | {:.2} % | {:.2} % | {:.2} ms | {:.2} ms | {:.2} ms | {} |",
-            100.0 * share,
-            100.0 * (share - idle) / n as f64,
-            pct(&lat, 0.5),
-            pct(&lat, 0.99),
-            pct(&lat, 1.0),
-            how.join("; ")
-        );
-        notes.push(format!("{} Bode updates timed with {n} axes", lat.len()));
+    for r in rates {
+        let rows = run_rate(r, quick, &mut notes).await;
+        report.push_str(&rows);
     }
-    let _ = writeln!(report, "\n{}.", notes.join("; "));
+    let _ = writeln!(report, "\n{}.", notes.join(";\n"));
     print!("{report}");
     if let Some(dir) = out.parent() {
         let _ = std::fs::create_dir_all(dir);

@@ -18,8 +18,9 @@
 #    SCHED_FIFO, mlockall and the last core itself and reports what it was granted.
 # 5. runs the cycle-rate benchmark (drivers/flexid-vdrive/benches/cycle_rate.rs): highest
 #    overrun-free cycle rate on an emulated 1 Mbit/s bus, target/bench/cycle_rate.md.
-# 6. runs the daemon-load benchmark (benches/daemon_load.rs): the daemon's CPU share per
-#    sweeping axis and the period-end -> Bode latency, target/bench/daemon_load_*hz.md.
+# 6. runs the daemon-load benchmark (benches/daemon_load.rs) at 1, 2 and 4 kHz: the daemon's
+#    CPU share per sweeping axis, the period-end -> Bode latency and the cycle thread's
+#    wake-up lateness next to a bare loop, target/bench/daemon_load.md.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 root=$(pwd)
@@ -117,8 +118,9 @@ wexe=$(cargo build --release --bench withheld_effect --message-format=json 2>/de
 
 # 6. The daemon under load (benches/daemon_load.rs): the real daemon with 1 and 2 axes
 #    sweeping in real time on flexid-vdrive processes against itself idle: CPU share per
-#    axis and the period-end -> Bode latency on the event stream (p50/p99), at 1 kHz and
-#    250 Hz; target/bench/daemon_load_{1000,250}hz.md. --quick: 3 s sweeps; full: 10 s.
+#    axis, the period-end -> Bode latency on the event stream (p50/p99) and the cycle
+#    thread's wake-up lateness against a bare loop in the same run, at 1, 2 and 4 kHz;
+#    target/bench/daemon_load.md. --quick: 3 s sweeps; full: 10 s.
 cargo build --release -p flexid-vdrive --bin flexid-vdrive 2>/dev/null || true
 dexe=$(cargo build --release --bench daemon_load --message-format=json 2>/dev/null |
     sed -n 's/.*"executable":"\([^"]*daemon_load[^"]*\)".*/\1/p' | tail -n 1)
@@ -127,6 +129,4 @@ if [ -z "$dexe" ] || [ ! -x "$dexe" ]; then
     echo "bench: could not find the daemon_load executable" >&2
     exit 1
 fi
-for rate in 1000 250; do
-    "$dexe" "${mode[@]}" --rate-hz "$rate" --out "$root/target/bench/daemon_load_${rate}hz.md"
-done
+"$dexe" "${mode[@]}" --out "$root/target/bench/daemon_load.md"

@@ -10,7 +10,7 @@
 mod daemon_common;
 mod e2e;
 
-use daemon_common::broker::{read_retained, start_broker};
+use daemon_common::broker::{read_retained_of, start_broker};
 use daemon_common::process::{canopen_config, CanAxis, DaemonProc};
 use daemon_common::{read_events_at, start_sweep_at, token_file, Sse};
 use e2e::*;
@@ -79,7 +79,7 @@ fn check_disk(data: &Path, axis: &str, id: &str, plant: &Path) {
 
 /// The retained model message of `axis` is this sweep's and matches the plant within 3 %.
 async fn check_mqtt(port: u16, axis: &str, id: &str, plant: &Path) {
-    let m = read_retained(port, &format!("e2e/flexid/{axis}/model")).await;
+    let m = read_retained_of(port, &format!("e2e/flexid/{axis}/model"), id).await;
     assert_eq!(m["sweep_id"], id, "{m}");
     let (j, c) = plant_truth(plant);
     for (k, want) in [("inertia_kgm2", j), ("stiffness_nm_per_rad", c)] {

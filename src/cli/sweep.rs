@@ -299,7 +299,7 @@ fn measure<B: CanBus>(
     let outcome = match plan.pacing {
         // absolute deadlines on a cycle thread of its own, SCHED_FIFO when permitted (a
         // drive simulated on the same host must answer at real-time priority too:
-        // flexid-vdrive --rt-priority; at normal priority it answers late whenever the
+        // flexid-vdrive --fifo-priority; at normal priority it answers late whenever the
         // host is busy, and the sweep counts those TPDOs late or lost)
         Pacing::Realtime => {
             run_sweep_on_cycle_thread(

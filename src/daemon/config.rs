@@ -147,9 +147,16 @@ pub struct BusConfig {
     /// UDP port, e.g. 43113.
     #[serde(default)]
     pub port: Option<u16>,
-    /// Bit rate [bit/s] (for the bus-load check), 10 000 ..= 1 000 000.
+    /// Bit rate [bit/s] (for the bus-load check), 10 000 ..= 1 000 000 (classic CAN). A
+    /// `udp` bus has no wire time of its own, so it may also stand for a faster transport
+    /// (an EtherCAT-class link, up to [`MAX_VIRTUAL_BITRATE`]): the admission then counts
+    /// the same frames at that rate.
     pub bitrate: u32,
 }
+
+/// Highest `bitrate` of a `udp` bus [bit/s]: 100 Mbit/s, an EtherCAT-class transport
+/// (classic CAN, and so every `socketcan` bus, stops at 1 Mbit/s).
+pub const MAX_VIRTUAL_BITRATE: u32 = 100_000_000;
 
 /// Bus kinds.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
@@ -312,8 +319,18 @@ impl Config {
                     }
                 }
             }
-            if !(10_000..=1_000_000).contains(&b.bitrate) {
-                return Err(bad(key("bitrate"), "must be 10000..=1000000 bit/s"));
+            match b.kind {
+                BusKind::Socketcan if !(10_000..=1_000_000).contains(&b.bitrate) => {
+                    return Err(bad(key("bitrate"), "must be 10000..=1000000 bit/s"));
+                }
+                BusKind::Udp if !(10_000..=MAX_VIRTUAL_BITRATE).contains(&b.bitrate) => {
+                    return Err(bad(
+                        key("bitrate"),
+                        "must be 10000..=100000000 bit/s (above 1000000 only on a udp bus, \
+                         standing for a faster transport)",
+                    ));
+                }
+                _ => {}
             }
         }
         if self.axis.is_empty() {
@@ -468,6 +485,26 @@ limits = { peak_torque_nm = 2.0, max_speed_rad_s = 10.0, position_window_rad = 1
             .unwrap_err()
             .to_string();
         assert_eq!(e, "f: axis[1].name: duplicate axis name");
+    }
+
+    #[test]
+    fn bitrate_above_classic_can_only_on_a_udp_bus() {
+        let fast = GOOD.replace("bitrate = 1000000", "bitrate = 100000000");
+        let e = Config::parse(&fast, "f").unwrap_err().to_string();
+        assert_eq!(e, "f: bus[0].bitrate: must be 10000..=1000000 bit/s");
+        let udp = fast.replace(
+            "kind = \"socketcan\"\ninterface = \"can0\"",
+            "kind = \"udp\"\ngroup = \"239.74.163.2\"\nport = 43113",
+        );
+        let c = Config::parse(&udp, "f").unwrap();
+        assert_eq!(c.bus[0].bitrate, MAX_VIRTUAL_BITRATE);
+        let e = Config::parse(&udp.replace("100000000", "100000001"), "f")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("f: bus[0].bitrate: must be 10000..=100000000"),
+            "{e}"
+        );
     }
 
     fn replace_nth(s: &str, from: &str, to: &str, n: usize) -> String {

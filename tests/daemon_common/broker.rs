@@ -90,3 +90,35 @@ pub async fn read_retained(port: u16, topic: &str) -> serde_json::Value {
         }
     }
 }
+
+/// The retained message of `topic` whose `sweep_id` is `id`: the daemon publishes the
+/// model after the sweep's `ended` event, so a subscription made at `ended` may see the
+/// previous retained message or the live one first; subscribes again (a new client) until
+/// the retained message is this sweep's, for up to 15 s.
+pub async fn read_retained_of(port: u16, topic: &str, id: &str) -> serde_json::Value {
+    let deadline = tokio::time::Instant::now() + Duration::from_secs(15);
+    for attempt in 0u32.. {
+        let mut opts = MqttOptions::new(
+            format!("test-{}-{attempt}", std::process::id()),
+            "127.0.0.1",
+            port,
+        );
+        opts.set_keep_alive(Duration::from_secs(5));
+        let (client, mut el) = AsyncClient::new(opts, 10);
+        client.subscribe(topic, QoS::AtLeastOnce).await.unwrap();
+        let until = (tokio::time::Instant::now() + Duration::from_secs(1)).min(deadline);
+        while let Ok(ev) = tokio::time::timeout_at(until, el.poll()).await {
+            if let Event::Incoming(Packet::Publish(p)) = ev.unwrap() {
+                let v: serde_json::Value = serde_json::from_slice(&p.payload).unwrap();
+                if p.retain && p.topic == topic && v["sweep_id"] == id {
+                    return v;
+                }
+            }
+        }
+        let _ = client.disconnect().await;
+        if tokio::time::Instant::now() >= deadline {
+            break;
+        }
+    }
+    panic!("no retained message of sweep {id} on {topic} within 15 s");
+}

@@ -19,6 +19,9 @@ pub struct CanAxis<'a> {
     pub clock: &'a str,
     /// Cycle rate [Hz] (1000 by default).
     pub cycle_hz: f64,
+    /// The bus's `bitrate` [bit/s] (1 Mbit/s by default; above that a udp bus stands for
+    /// a faster transport).
+    pub bitrate: u32,
 }
 
 impl<'a> CanAxis<'a> {
@@ -30,6 +33,7 @@ impl<'a> CanAxis<'a> {
             position_window_rad: 1000.0,
             clock: "simulated",
             cycle_hz: 1000.0,
+            bitrate: 1_000_000,
         }
     }
 }
@@ -46,9 +50,10 @@ pub fn canopen_config(dir: &Path, token: &Path, axes: &[CanAxis], extra: &str) -
     for a in axes {
         text.push_str(&format!(
             "[[bus]]\nname = \"bus-{name}\"\nkind = \"udp\"\ngroup = \"{GROUP}\"\nport = {port}\n\
-             bitrate = 1000000\n",
+             bitrate = {bitrate}\n",
             name = a.name,
-            port = a.port
+            port = a.port,
+            bitrate = a.bitrate
         ));
     }
     for a in axes {

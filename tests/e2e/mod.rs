@@ -71,11 +71,11 @@ impl VDrive {
         Self::start_with(bus, plant, clock, &[])
     }
 
-    /// [`VDrive::start`] serving at `SCHED_FIFO` 70 when permitted (`--rt-priority`):
+    /// [`VDrive::start`] serving at `SCHED_FIFO` 70 when permitted (`--fifo-priority`):
     /// the drive for a real-time (`SCHED_FIFO`) master on this host, which holds its
     /// deadlines while a normal-priority drive would answer late whenever the host is busy.
     pub fn start_rt(bus: &str, plant: &Path) -> VDrive {
-        Self::start_with(bus, plant, "lockstep", &["--rt-priority", "70"])
+        Self::start_with(bus, plant, "lockstep", &["--fifo-priority", "70"])
     }
 
     /// [`VDrive::start_clocked`] with more arguments.

@@ -16,6 +16,8 @@ pub mod error;
 pub mod frame;
 pub mod inproc;
 pub mod loopback;
+#[cfg(target_os = "linux")]
+mod poll;
 pub mod pycan_wire;
 mod rx_stamp;
 #[cfg(target_os = "linux")]

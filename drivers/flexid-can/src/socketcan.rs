@@ -135,26 +135,11 @@ impl CanBus for SocketCanBus {
                 .map_err(|e| self.io("receive", e))?;
             self.timeout = Some(t);
         }
-        let mut pfd = libc::pollfd {
-            fd: std::os::fd::AsRawFd::as_raw_fd(&self.socket),
-            events: libc::POLLIN,
-            revents: 0,
-        };
-        let ts = libc::timespec {
-            tv_sec: timeout.as_secs().min(i32::MAX as u64) as libc::time_t,
-            tv_nsec: timeout.subsec_nanos() as libc::c_long,
-        };
-        // SAFETY: one valid pollfd, a valid timespec, no signal mask.
-        let ready = unsafe { libc::ppoll(&mut pfd, 1, &ts, std::ptr::null()) };
-        if ready < 0 {
-            let e = io::Error::last_os_error();
-            if e.kind() == io::ErrorKind::Interrupted {
-                return Ok(None);
-            }
-            return Err(self.io("receive", e));
-        }
-        if ready == 0 {
-            return Ok(None);
+        let fd = std::os::fd::AsRawFd::as_raw_fd(&self.socket);
+        match crate::poll::wait_readable(fd, timeout) {
+            Ok(true) => {}
+            Ok(false) => return Ok(None),
+            Err(e) => return Err(self.io("receive", e)),
         }
         let raw = match self.socket.read_raw_frame() {
             Ok(raw) => raw,

@@ -279,28 +279,6 @@ pub fn decode_datagram(
     }
 }
 
-/// Waits up to `left` for `fd` to be readable (ppoll: microsecond timeouts, no tick
-/// rounding). A signal ends the wait early (not an error).
-fn wait_readable(fd: std::os::fd::RawFd, left: Duration) -> io::Result<()> {
-    let mut pfd = libc::pollfd {
-        fd,
-        events: libc::POLLIN,
-        revents: 0,
-    };
-    let ts = libc::timespec {
-        tv_sec: left.as_secs().min(i32::MAX as u64) as libc::time_t,
-        tv_nsec: left.subsec_nanos() as libc::c_long,
-    };
-    // SAFETY: one valid pollfd, a valid timespec, no signal mask.
-    if unsafe { libc::ppoll(&mut pfd, 1, &ts, std::ptr::null()) } < 0 {
-        let e = io::Error::last_os_error();
-        if e.kind() != io::ErrorKind::Interrupted {
-            return Err(e);
-        }
-    }
-    Ok(())
-}
-
 fn rx_error(interface: &Arc<str>, source: io::Error) -> BusError {
     BusError::Io {
         interface: interface.clone(),
@@ -356,7 +334,7 @@ impl CanBus for UdpMulticastBus {
                     if left.is_zero() {
                         return Ok(None);
                     }
-                    wait_readable(self.rx.as_raw_fd(), left)
+                    crate::poll::wait_readable(self.rx.as_raw_fd(), left)
                         .map_err(|e| rx_error(&self.name, e))?;
                     continue; // readable, woken early or interrupted: read again
                 }

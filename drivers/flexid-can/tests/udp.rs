@@ -115,6 +115,34 @@ fn timeouts_return_none_in_time() {
     assert!(a.recv_timeout(Duration::ZERO).unwrap().is_none());
 }
 
+/// A wait that runs out ends at its deadline, not at the next scheduler tick: the cycle
+/// waits for its TPDOs up to the end of a 250-1000 µs period. `SO_RCVTIMEO` rounds up to
+/// whole jiffies (4 ms at HZ = 250); the median of 21 short waits must overshoot by less
+/// than a millisecond (the median keeps a loaded host's odd stall out).
+#[test]
+fn short_timeouts_end_near_their_deadline() {
+    if !common::loopback_multicast() {
+        return;
+    }
+    let mut a = open(43206);
+    let wait = Duration::from_micros(300);
+    let mut over: Vec<Duration> = (0..21)
+        .map(|_| {
+            let t0 = std::time::Instant::now();
+            assert!(a.recv_timeout(wait).unwrap().is_none());
+            let dt = t0.elapsed();
+            assert!(dt >= wait, "{dt:?}");
+            dt - wait
+        })
+        .collect();
+    over.sort();
+    assert!(
+        over[10] < Duration::from_millis(1),
+        "median overshoot {:?}",
+        over[10]
+    );
+}
+
 #[test]
 fn non_multicast_group_is_an_open_error() {
     let e = UdpMulticastBus::open(UdpConfig::group("127.0.0.1".parse().unwrap())).unwrap_err();

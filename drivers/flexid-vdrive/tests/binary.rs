@@ -110,3 +110,42 @@ fn bad_plant_file_exits_2_with_a_message() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("/nonexistent/plant.toml"));
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn fifo_priority_is_applied_or_its_refusal_named() {
+    let out = Command::new(BIN)
+        .args(["--bus", "udp:239.74.163.2:43179", "--fifo-priority", "0"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--fifo-priority"));
+    if !loopback_multicast() {
+        return;
+    }
+    let mut child = Command::new(BIN)
+        .args(["--bus", "udp:239.74.163.2:43179", "--fifo-priority", "50"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut lines = BufReader::new(child.stdout.take().unwrap()).lines();
+    let ready = lines.next().expect("a ready line").unwrap();
+    assert!(ready.contains("ready on"), "{ready}");
+    // SAFETY: plain queries of another process's scheduling.
+    let (policy, prio) = unsafe {
+        let mut p = libc::sched_param { sched_priority: 0 };
+        let pid = child.id() as libc::pid_t;
+        (libc::sched_getscheduler(pid), {
+            libc::sched_getparam(pid, &mut p);
+            p.sched_priority
+        })
+    };
+    let _ = child.kill();
+    let out = child.wait_with_output().unwrap();
+    if policy == libc::SCHED_FIFO {
+        assert_eq!(prio, 50);
+    } else {
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains("SCHED_FIFO priority 50 not granted"), "{err}");
+    }
+}

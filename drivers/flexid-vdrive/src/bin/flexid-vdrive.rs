@@ -2,8 +2,13 @@
 //!
 //! ```text
 //! flexid-vdrive --bus udp[:GROUP[:PORT]] | socketcan:IFACE [--node 5] [--plant P.toml]
-//!               [--clock lockstep|realtime] [--bitrate 1000000] [--rt-priority 70]
+//!               [--clock lockstep|realtime] [--bitrate 1000000] [--fifo-priority 1..=99]
 //! ```
+//!
+//! The drive answers every SYNC from its receive path (it has no cycle timer of its own);
+//! `--fifo-priority` serves the bus under `SCHED_FIFO` with locked memory, as a drive's
+//! firmware answers within microseconds whatever the host runs (refused rights are logged
+//! and the drive runs at normal priority).
 //!
 //! Prints `flexid-vdrive: node N ready on BUS` on stdout once the boot-up frame is sent;
 //! exits 0 on SIGTERM/SIGINT, 2 on bad arguments or a bad plant file, 1 on a bus failure.
@@ -55,31 +60,24 @@ struct Cli {
     /// Seed of the plant's noise (nonlinear plant with [effects] only).
     #[arg(long, default_value_t = 1)]
     seed: u64,
-    /// Serve the bus with `SCHED_FIFO` at this priority (1..=99) when permitted, as a
-    /// drive's firmware answers a SYNC from its own real-time loop (next to a real-time
-    /// master on a loaded host, a normal-priority drive answers late); refused: normal
-    /// priority, said on stderr.
+    /// Serve the bus under `SCHED_FIFO` at this priority (1..=99) with locked memory.
     #[arg(long, value_parser = clap::value_parser!(u8).range(1..=99))]
-    rt_priority: Option<u8>,
+    fifo_priority: Option<u8>,
 }
 
-/// Applies `--rt-priority` to the calling (serving) thread; says what was granted.
-fn real_time(priority: Option<u8>) {
-    let Some(p) = priority else { return };
-    let setup = flexid::rt::RtSetup {
-        fifo_priority: Some(p),
-        lock_memory: false,
-        cpu: None,
-    };
-    match setup.apply() {
-        g if g.fifo_priority.is_some() => {
-            eprintln!("flexid-vdrive: serving with SCHED_FIFO priority {p}")
+fn serve<B: CanBus>(
+    bus: B,
+    plant: &DrivePlant,
+    clock: ClockMode,
+    seed: u64,
+    fifo_priority: Option<u8>,
+) -> ExitCode {
+    if let Some(p) = fifo_priority {
+        let granted = flexid::rt::RtSetup::realtime(p).apply();
+        for r in &granted.refused {
+            eprintln!("flexid-vdrive: {r}");
         }
-        g => eprintln!("flexid-vdrive: {}", g.refused.join("; ")),
     }
-}
-
-fn serve<B: CanBus>(bus: B, plant: &DrivePlant, clock: ClockMode, seed: u64) -> ExitCode {
     let drive = match plant_drive(plant, clock, seed) {
         Ok(d) => d,
         Err(e) => {
@@ -148,7 +146,6 @@ fn main() -> ExitCode {
         libc::signal(libc::SIGTERM, on_signal as *const () as libc::sighandler_t);
         libc::signal(libc::SIGINT, on_signal as *const () as libc::sighandler_t);
     }
-    real_time(cli.rt_priority);
     let clock = match cli.clock {
         Clock::Lockstep => ClockMode::LockStep,
         Clock::Realtime => ClockMode::RealTime,
@@ -156,8 +153,14 @@ fn main() -> ExitCode {
     match spec {
         BusSpec::Udp(cfg) => match UdpMulticastBus::open(cfg) {
             Ok(bus) => match cli.bitrate {
-                Some(b) if b > 0 => serve(Paced::new(bus, b), &plant, clock, cli.seed),
-                _ => serve(bus, &plant, clock, cli.seed),
+                Some(b) if b > 0 => serve(
+                    Paced::new(bus, b),
+                    &plant,
+                    clock,
+                    cli.seed,
+                    cli.fifo_priority,
+                ),
+                _ => serve(bus, &plant, clock, cli.seed, cli.fifo_priority),
             },
             Err(e) => {
                 eprintln!("flexid-vdrive: {e}");
@@ -170,7 +173,7 @@ fn main() -> ExitCode {
                 if cli.bitrate.is_some() {
                     tracing::info!("--bitrate ignored on SocketCAN (set it with ip link)");
                 }
-                serve(bus, &plant, clock, cli.seed)
+                serve(bus, &plant, clock, cli.seed, cli.fifo_priority)
             }
             Err(e) => {
                 eprintln!("flexid-vdrive: {e}");

@@ -248,6 +248,9 @@ pub fn render_report(a: &Analysis, title: &str) -> String {
                 .orders
                 .iter()
                 .map(|o| match &o.error {
+                    Some(e) if e.contains(crate::identify::fit::NOT_TRIED) => {
+                        format!("{} bodies not tried (time cap)", o.masses)
+                    }
                     Some(e) => format!("{} bodies failed ({e})", o.masses),
                     None => format!(
                         "{} bodies BIC {:.1}{}",

@@ -175,6 +175,9 @@ pub(super) struct StartGate<'a> {
     counted: bool,
 }
 
+/// The reason of an order not tried because of the cap.
+pub const NOT_TRIED: &str = "not tried: the time cap was reached";
+
 /// The reason of a start skipped by the cap.
 pub(super) const SKIPPED: &str = "skipped: the time cap was reached";
 
@@ -213,7 +216,7 @@ pub(super) fn fit_each_order(
             out.push(Err(IdentifyError::FitFailed {
                 masses: c.masses(),
                 starts: 0,
-                reason: "not tried: the time cap was reached".into(),
+                reason: NOT_TRIED.into(),
             }));
             continue;
         }

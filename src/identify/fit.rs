@@ -18,7 +18,7 @@
 //! * Covariance: `(J^T J)^-1 max(1, chi2/dof)`; standard deviations of the physical
 //!   parameters by the delta method, `sigma_p = p sigma_theta`.
 
-pub use super::budget::{BudgetSnapshot, FitBudget};
+pub use super::budget::{BudgetSnapshot, FitBudget, NOT_TRIED};
 use super::error::IdentifyError;
 use super::lines::{fallback_sigma, sample_rate, sigma_log, usable_lines, RigidReference};
 use super::lm::{self, LmOptions, LmWorkspace};

@@ -5,7 +5,9 @@ use serde_json::{json, Value};
 /// `{"model": {"masses", "inertia_kgm2", "stiffness_nm_per_rad", "resonance_hz",
 /// "antiresonance_hz", ...}, "total_inertia", "pairs", "resonance_peaks_hz",
 /// "resonance_peaks", "paper", "exact", "fit", "orders",
-/// "frf", "notes"}`. `model` is `null` when no chain could be fitted (e.g. acceleration data).
+/// "frf", "notes", "time_cap"}`; `time_cap` is `null` without a cap, else
+/// `{"max_seconds", "capped", "elapsed_s", "starts_skipped", "orders_skipped"}` (`capped`:
+/// the model is the best found before the cap). `model` is `null` when no chain could be fitted (e.g. acceleration data).
 /// `resonance_peaks_hz` lists every significant peak whether or not it is part of an AR/R
 /// pair (structures that are not a free chain: suspended airframes, non-collocated sensors).
 pub fn to_json(a: &Analysis) -> Value {
@@ -39,5 +41,6 @@ pub fn to_json(a: &Analysis) -> Value {
             "band_hz": [f.freq_hz.first(), f.freq_hz.last()],
         },
         "notes": a.notes,
+        "time_cap": a.time_cap,
     })
 }

@@ -9,9 +9,11 @@ mod json;
 mod pipeline;
 mod report;
 mod summary;
+mod time_cap;
 
 pub use estimate::{estimate_frf, EstimatedFrf};
 pub use json::to_json;
 pub use pipeline::{analyze, Analysis, AnalysisError, AnalysisOptions};
 pub use report::render_report;
 pub use summary::{Coupling, ModelSummary};
+pub use time_cap::TimeCap;

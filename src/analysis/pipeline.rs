@@ -103,10 +103,25 @@ pub struct Analysis {
     pub model_frf: Option<Frf>,
     /// Remarks for the reader: approximations, assumptions, limits.
     pub notes: Vec<String>,
+    /// The time cap (`opts.fit.budget`) and whether it stopped the fit early; `None`
+    /// without a cap.
+    pub time_cap: Option<super::TimeCap>,
 }
 
 /// Analyse a recording: estimate its FRF and identify the compliant chain behind it.
+///
+/// With a capped `opts.fit.budget`, starts and orders not begun when the cap passes are
+/// skipped and the best model so far is returned; `Analysis::time_cap` and a note say so.
 pub fn analyze(rec: &Recording, opts: &AnalysisOptions) -> Result<Analysis, AnalysisError> {
+    let mut a = analyze_uncapped(rec, opts)?;
+    a.time_cap = super::TimeCap::of(&opts.fit.budget);
+    if let Some(m) = a.time_cap.as_ref().and_then(|t| t.message()) {
+        a.notes.insert(0, m);
+    }
+    Ok(a)
+}
+
+fn analyze_uncapped(rec: &Recording, opts: &AnalysisOptions) -> Result<Analysis, AnalysisError> {
     if let Some(m) = opts.masses {
         if m == 0 || m > opts.max_masses.max(8) {
             return Err(AnalysisError::Masses {
@@ -155,6 +170,7 @@ pub fn analyze(rec: &Recording, opts: &AnalysisOptions) -> Result<Analysis, Anal
         model: None,
         model_frf: None,
         notes,
+        time_cap: None,
     };
     let total = total_inertia(
         rec,
@@ -241,7 +257,13 @@ pub fn analyze(rec: &Recording, opts: &AnalysisOptions) -> Result<Analysis, Anal
                 let choices = combinations(spectra.len(), k, 32);
                 let mut best: Option<ChainFit> = None;
                 let mut last_err = None;
+                let budget = &opts.fit.budget;
                 for keep in choices {
+                    if budget.expired() && best.is_some() {
+                        budget.skip_order();
+                        continue;
+                    }
+                    budget.begin_fit(m, opts.fit.starts);
                     let sel: Vec<(f64, f64)> = keep.iter().map(|&i| spectra[i]).collect();
                     let Some(init) = exact_for(&sel) else {
                         continue;
@@ -288,6 +310,7 @@ pub fn analyze(rec: &Recording, opts: &AnalysisOptions) -> Result<Analysis, Anal
             let init = init.ok_or(IdentifyError::InvalidArgument(
                 "no initial chain could be formed from the detected pairs".into(),
             ))?;
+            opts.fit.budget.begin_fit(m, opts.fit.starts);
             fit_chain(&analysis.measured.frf, &init, &fit_opts)?
         }
         None => {

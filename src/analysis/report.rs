@@ -15,6 +15,9 @@ pub fn render_report(a: &Analysis, title: &str) -> String {
     let m = &a.measured;
     let f = &m.frf;
     let _ = writeln!(s, "flexid identify: {title}");
+    if let Some(m) = a.time_cap.as_ref().and_then(|t| t.message()) {
+        let _ = writeln!(s, "{m}");
+    }
     let rel: Vec<f64> = (0..f.len())
         .map(|i| f.relative_std(i))
         .filter(|v| v.is_finite())
@@ -245,6 +248,9 @@ pub fn render_report(a: &Analysis, title: &str) -> String {
                 .orders
                 .iter()
                 .map(|o| match &o.error {
+                    Some(e) if e.contains(crate::identify::fit::NOT_TRIED) => {
+                        format!("{} bodies not tried (time cap)", o.masses)
+                    }
                     Some(e) => format!("{} bodies failed ({e})", o.masses),
                     None => format!(
                         "{} bodies BIC {:.1}{}",

@@ -5,7 +5,7 @@ use super::plant::PlantFile;
 use super::{BodeArgs, CliError, DemoArgs, IdentifyArgs, ImportArgs, ModelArgs, SimulateArgs};
 use crate::analysis::{analyze, render_report, to_json, Analysis, AnalysisOptions};
 use crate::excitation::MultisineDesign;
-use crate::identify::fit::FitOptions;
+use crate::identify::fit::{FitBudget, FitOptions};
 use crate::plot::BodePlot;
 use crate::recording::{
     read_recording, write_bytes_atomic, write_recording, MotionSignal, Recording,
@@ -23,12 +23,19 @@ pub(crate) fn options(m: &ModelArgs) -> Result<AnalysisOptions, CliError> {
     if m.starts == 0 {
         return Err(CliError::input("--starts must be at least 1"));
     }
+    if !(m.max_seconds.is_finite() && m.max_seconds > 0.0) {
+        return Err(CliError::input(format!(
+            "--max-seconds {}: must be a positive number of seconds",
+            m.max_seconds
+        )));
+    }
     Ok(AnalysisOptions {
         masses: m.masses,
         band_hz,
         fit: FitOptions {
             starts: m.starts,
             seed: m.seed,
+            budget: FitBudget::with_cap_s(m.max_seconds),
             ..AnalysisOptions::default().fit
         },
         ..AnalysisOptions::default()
@@ -46,7 +53,12 @@ pub(crate) fn run_analysis(rec: &Recording, opts: &AnalysisOptions) -> Result<An
         rec.sample_rate_hz,
         opts.fit.starts
     );
-    analyze(rec, opts).map_err(|e| CliError::failed(e.to_string()))
+    // the cap counts from here, not from parsing the arguments
+    let mut opts = opts.clone();
+    opts.fit.budget = opts.fit.budget.restarted();
+    let budget = opts.fit.budget.clone();
+    super::fit_progress::with_progress(&budget, "flexid identify", || analyze(rec, &opts))
+        .map_err(|e| CliError::failed(e.to_string()))
 }
 
 fn bode_plot<'a>(a: &'a Analysis, title: &str) -> BodePlot<'a> {

@@ -151,6 +151,26 @@ pub(super) fn print_truth(an: &Analysis, plant: &PlantFile) {
             truth.masses()
         );
     }
+    // the spectra, each plant frequency against the nearest identified one (also when the
+    // orders differ)
+    for (name, got, want) in [
+        ("AR", &m.antiresonance_hz, truth.antiresonances_hz()),
+        ("R", &m.resonance_hz, truth.resonances_hz()),
+    ] {
+        for (i, w) in want.iter().enumerate() {
+            let near = got
+                .iter()
+                .min_by(|a, b| ((*a - w).abs()).total_cmp(&(*b - w).abs()));
+            match near {
+                Some(g) => println!(
+                    "  {name}{} [Hz]: identified {g:.3}, true {w:.3}, error {:+.2} %",
+                    i + 1,
+                    100.0 * (g - w) / w
+                ),
+                None => println!("  {name}{} [Hz]: not identified, true {w:.3}", i + 1),
+            }
+        }
+    }
 }
 
 /// `flexid demo`: over the bus when possible, else the in-process simulation.

@@ -12,6 +12,7 @@ pub mod daemon_client;
 mod demo;
 pub mod diagnose;
 mod excite;
+mod fit_progress;
 pub mod plant;
 pub mod sweep;
 
@@ -74,7 +75,15 @@ pub struct ModelArgs {
     /// Seed of the random starts.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Time cap of the identification [s]: after it, the best model found so far is
+    /// returned, and the report and the JSON (`time_cap`) say so.
+    #[arg(long, default_value_t = DEFAULT_MAX_SECONDS)]
+    pub max_seconds: f64,
 }
+
+/// Default of `--max-seconds`: a few times what an automatic-order identification of a
+/// long multisine record takes on a loaded 2-core machine.
+pub const DEFAULT_MAX_SECONDS: f64 = 120.0;
 
 #[derive(Debug, Args)]
 pub struct IdentifyArgs {

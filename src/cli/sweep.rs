@@ -431,6 +431,7 @@ pub fn identify_outcome(
         band: None,
         starts: 20,
         seed: 1,
+        max_seconds: super::DEFAULT_MAX_SECONDS,
     })?;
     let t = Instant::now();
     let an = super::commands::run_analysis(&outcome.recording, &opts)?;

@@ -6,7 +6,8 @@
 //!
 //! * [`PeriodicEstimator`] / [`estimate_periodic`]: multisine excitation, per-line
 //!   averaging over steady periods with the errors-in-variables variance, levels at
-//!   non-excited lines ([`NonExcitedLevels`]) to detect nonlinear distortion.
+//!   non-excited lines ([`NonExcitedLevels`]) to detect nonlinear distortion; a velocity
+//!   response is freed of the ramp of a constant acceleration (`ramp.rs`).
 //! * [`WelchH1`] / [`welch_h1`]: arbitrary excitation, Welch-averaged H1 with coherence.
 //! * [`differenced_velocity`], [`difference_quotient_response`], [`remove_linear_trend`]:
 //!   turning drifting encoder position into something an FRF can be taken from.
@@ -15,6 +16,7 @@
 
 mod error;
 mod periodic;
+mod ramp;
 #[cfg(test)]
 mod testutil;
 mod types;

@@ -96,6 +96,9 @@ pub struct PeriodicEstimator {
     periods_seen: usize,
     /// Statistics for lines 0..=N/2 over the steady periods.
     stats: Vec<LineStats>,
+    /// `sum_m m Y_m(0)` over the steady periods `m = 0, 1, ...`: with the mean of `Y_m(0)`,
+    /// the slope of the period means (a velocity ramp, see `ramp.rs`).
+    dc_moment: f64,
 }
 
 impl std::fmt::Debug for PeriodicEstimator {
@@ -164,6 +167,7 @@ impl PeriodicEstimator {
             scratch,
             periods_seen: 0,
             stats: vec![LineStats::default(); max + 1],
+            dc_moment: 0.0,
         })
     }
 
@@ -212,6 +216,7 @@ impl PeriodicEstimator {
         self.fill = 0;
         self.periods_seen = 0;
         self.stats.fill(LineStats::default());
+        self.dc_moment = 0.0;
     }
 
     /// Feed a chunk of input `u` and output `y` samples (equal lengths, any length;
@@ -253,6 +258,7 @@ impl PeriodicEstimator {
             let p = (self.periods_seen - self.transient_periods + 1) as f64;
             let inv_p = 1.0 / p;
             let scale = 1.0 / self.n as f64;
+            self.dc_moment += (p - 1.0) * self.spec_y[0].re * scale;
             for ((s, &u), &y) in self.stats.iter_mut().zip(&self.spec_u).zip(&self.spec_y) {
                 let u = u * scale;
                 let y = y * scale;
@@ -303,6 +309,17 @@ impl PeriodicEstimator {
         }
     }
 
+    /// Mean output at line `k` over the steady periods; for a velocity response, without
+    /// the ramp of a constant acceleration (the same bias in every period; `ramp.rs`).
+    fn mean_y(&self, k: usize, p: usize) -> Complex64 {
+        let my = self.stats[k].my;
+        if !matches!(self.kind, FrfKind::DifferencedVelocity | FrfKind::Velocity) {
+            return my;
+        }
+        let slope = super::ramp::period_slope(self.dc_moment, self.stats[0].my.re, p);
+        my - super::ramp::ramp_line(slope, k, self.n)
+    }
+
     /// Variance of the mean output at line `k` (INFINITY with < 2 periods).
     fn var_mean_y(&self, k: usize, p: usize) -> f64 {
         if p < 2 {
@@ -343,7 +360,8 @@ impl PeriodicEstimator {
         };
         for &k in &lines {
             let s = &self.stats[k];
-            let h = s.my / s.mu;
+            let my = self.mean_y(k, p);
+            let h = my / s.mu;
             let var = if p < 2 {
                 f64::INFINITY
             } else {
@@ -362,8 +380,8 @@ impl PeriodicEstimator {
             frf.var.push(var);
             if let Some(c) = frf.coherence.as_mut() {
                 let suu = s.mu.norm_sqr() + s.m2u / pf;
-                let syy = s.my.norm_sqr() + s.m2y / pf;
-                let syu = s.my * s.mu.conj() + s.m2yu / pf;
+                let syy = my.norm_sqr() + s.m2y / pf;
+                let syu = my * s.mu.conj() + s.m2yu / pf;
                 let g = syu.norm_sqr() / (suu * syy);
                 c.push(if g.is_finite() {
                     g.clamp(0.0, 1.0)
@@ -404,7 +422,7 @@ impl PeriodicEstimator {
             }
             out.freq_hz.push(k as f64 * df);
             out.line.push(k);
-            out.mean_power_y.push(self.stats[k].my.norm_sqr());
+            out.mean_power_y.push(self.mean_y(k, p).norm_sqr());
             out.noise_var_y.push(self.var_mean_y(k, p));
         }
         Ok(out)
@@ -892,6 +910,38 @@ mod tests {
             worst_naive > 10.0 * worst_diff,
             "naive position error only {worst_naive}"
         );
+    }
+
+    #[test]
+    fn constant_acceleration_ramp_is_removed_from_a_velocity_frf() {
+        // a periodic velocity response plus the ramp of a constant acceleration (what a
+        // small mean torque does to a free chain): the same FRF as without the ramp; the
+        // naive reference (no correction) is biased at the lowest line
+        let (n, fs, tr, p) = (128, 1000.0, 1, 6);
+        let lines: Vec<usize> = (1..=40).collect();
+        let per = multisine_period(n, &lines, &mut rng(11));
+        let u = tile(&per, tr + p);
+        let steady = Biquad::resonator(0.95, 0.03).run(&tile(&per, 30));
+        let y = tile(&steady[29 * n..], tr + p);
+        let ramped: Vec<f64> = y
+            .iter()
+            .enumerate()
+            .map(|(i, v)| v + 0.1 + 5.0 * i as f64 / fs)
+            .collect();
+        let inf = info(n, p, tr, &lines);
+        for kind in [FrfKind::Velocity, FrfKind::DifferencedVelocity] {
+            let clean = estimate_periodic(&u, &y, &inf, fs, kind).unwrap();
+            let got = estimate_periodic(&u, &ramped, &inf, fs, kind).unwrap();
+            for i in 0..lines.len() {
+                assert!(rel_err(got.h[i], clean.h[i]) < 1e-9, "line {}", lines[i]);
+            }
+        }
+        let biased = naive(&u, &ramped, n, tr, &lines);
+        let clean = estimate_periodic(&u, &y, &inf, fs, FrfKind::Velocity).unwrap();
+        assert!(rel_err(biased.h[0], clean.h[0]) > 1e-2);
+        // a position response is left as it is
+        let pos = estimate_periodic(&u, &ramped, &inf, fs, FrfKind::Position).unwrap();
+        assert!(rel_err(pos.h[0], biased.h[0]) < 1e-9);
     }
 
     #[test]

@@ -380,7 +380,21 @@ pub fn detect_pairs(frf: &Frf, opts: &DetectOptions) -> Result<Detection, Identi
                         let top = max_smoothed(&ph, c.i, m);
                         let tail = median(&ph[m.saturating_sub(3)..m]);
                         let rise = top - base;
-                        if rise >= min_rise && tail - base >= min_rise {
+                        if let Some(peak) = edge_resonance(&y, &ph, s, c.i, base, min_rise) {
+                            // the resonance is inside the band but too close to its top
+                            // for a two-sided prominence
+                            let rise = max_smoothed(&ph, c.i, peak.i + 1) - base;
+                            let p = refine_pair(&nr, &y, Some(c), Some(peak), lower_bound, m, rise);
+                            det.notes.push(format!(
+                                "resonance at {:.4} Hz: {} lines below the top of the band, \
+                                 its peak is judged on its lower side only",
+                                p.r_hz,
+                                m - 1 - peak.i
+                            ));
+                            paired_peaks.push((peak.i, p.r_hz, p.r_std_hz));
+                            det.pairs.push(p);
+                            lower_bound = peak.i;
+                        } else if rise >= min_rise && tail - base >= min_rise {
                             let p = refine_pair(&nr, &y, Some(c), None, lower_bound, m, rise);
                             det.notes.push(format!(
                                 "anti-resonance at {:.4} Hz: its resonance lies above the \
@@ -499,6 +513,38 @@ fn prominences(v: &[f64]) -> Vec<(usize, f64, usize)> {
         out.push((i, v[i] - base, bi));
     }
     out
+}
+
+/// A resonance just below the top of the band, after the last notch `notch`: the highest
+/// line of `ln |R|` above the notch, inside the band (not the last line), falling to the
+/// band's end by at least 3 standard deviations, with the phase rising by `min_rise` from
+/// `base` up to it. Such a peak has no two-sided prominence (the band ends on its upper
+/// flank), yet the notch, the rise and the fall mark it; a level still rising at the top of
+/// the band is a resonance above it (`r_above_band`) instead.
+fn edge_resonance(
+    y: &[f64],
+    ph: &[f64],
+    sigma: &[f64],
+    notch: usize,
+    base: f64,
+    min_rise: f64,
+) -> Option<Candidate> {
+    let m = y.len();
+    let (i, &top) = y
+        .iter()
+        .enumerate()
+        .skip(notch + 1)
+        .max_by(|a, b| a.1.total_cmp(b.1))?;
+    let last = m - 1;
+    let fall_sigma = (sigma[i].powi(2) + sigma[last].powi(2)).sqrt();
+    let fall = top - y[last];
+    let rise = max_smoothed(ph, notch, i + 1) - base;
+    (i < last && fall >= 3.0 * fall_sigma && rise >= min_rise).then_some(Candidate {
+        i,
+        kind: ExtremumKind::Peak,
+        prom: top - y[notch],
+        sigma: (sigma[i].powi(2) + sigma[notch].powi(2)).sqrt(),
+    })
 }
 
 /// Three-point running median of `v[lo..hi]`, then its maximum.
@@ -730,5 +776,46 @@ mod tests {
         assert!(det.peaks[0].paired);
         assert_eq!(det.peaks[0].freq_hz, det.pairs[0].r_hz);
         assert!((det.peaks[0].freq_hz / ch.resonances_hz()[0] - 1.0).abs() < 0.01);
+    }
+
+    /// The demo's SCARA shoulder (AR/R 2.9/5 Hz, 380/590 Hz) sampled at 1.5 kHz, lines every
+    /// 0.25 Hz up to `top_hz`, 1 % relative line std.
+    fn scara_to(top_hz: f64) -> Frf {
+        let ch = crate::model::Chain::new(
+            vec![3.614e-3, 5.098e-3, 17.188e-3],
+            vec![2.906e4, 5.706],
+            vec![0.47, 0.018],
+        )
+        .unwrap();
+        let sc = crate::model::SampledChain::new(&ch, 1500.0, 0).unwrap();
+        let freq_hz: Vec<f64> = (1..=(top_hz / 0.25) as usize)
+            .map(|k| k as f64 * 0.25)
+            .collect();
+        let h: Vec<Complex64> = freq_hz.iter().map(|&f| sc.frf(f)).collect();
+        let var = h.iter().map(|x| (1e-2 * x.norm()).powi(2)).collect();
+        Frf {
+            freq_hz,
+            h,
+            var,
+            coherence: None,
+            kind: FrfKind::DifferencedVelocity,
+            sample_rate_hz: 1500.0,
+        }
+    }
+
+    #[test]
+    fn a_resonance_just_below_the_top_of_the_band_is_paired() {
+        // the band ends 10 Hz above the 590 Hz resonance: no two-sided peak
+        let det = detect_pairs(&scara_to(600.0), &DetectOptions::default()).unwrap();
+        assert_eq!(det.pairs.len(), 2, "{det:?}");
+        let p = &det.pairs[1];
+        assert!(!p.r_above_band, "{p:?}");
+        assert!((p.r_hz / 590.0 - 1.0).abs() < 0.01, "{p:?}");
+        assert!((p.ar_hz / 380.0 - 1.0).abs() < 0.03, "{p:?}");
+        // the band ends below the resonance (the level still rising): a resonance above
+        // the band, not a peak at its edge
+        let det = detect_pairs(&scara_to(560.0), &DetectOptions::default()).unwrap();
+        assert_eq!(det.pairs.len(), 2, "{det:?}");
+        assert!(det.pairs[1].r_above_band, "{:?}", det.pairs[1]);
     }
 }

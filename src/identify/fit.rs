@@ -18,6 +18,7 @@
 //! * Covariance: `(J^T J)^-1 max(1, chi2/dof)`; standard deviations of the physical
 //!   parameters by the delta method, `sigma_p = p sigma_theta`.
 
+pub use super::budget::{BudgetSnapshot, FitBudget, NOT_TRIED};
 use super::error::IdentifyError;
 use super::lines::{fallback_sigma, sample_rate, sigma_log, usable_lines, RigidReference};
 use super::lm::{self, LmOptions, LmWorkspace};
@@ -52,6 +53,9 @@ pub struct FitOptions {
     /// Worker threads for the starts (1 = on the calling thread; 0 = the available
     /// parallelism, at most 4). The result does not depend on it.
     pub threads: usize,
+    /// Time cap and progress counters (unlimited by default; see [`FitBudget`]).
+    #[serde(skip)]
+    pub budget: FitBudget,
 }
 
 impl Default for FitOptions {
@@ -65,6 +69,7 @@ impl Default for FitOptions {
             spread: 0.3,
             damping_decades: 1.0,
             threads: 0,
+            budget: FitBudget::default(),
         }
     }
 }
@@ -167,6 +172,7 @@ pub(super) fn fit_chain_coarse(
         };
         // waves: the first start alone, then WAVE at a time, each seeing the coarse optima
         // of the earlier waves
+        let gate = opts.budget.gate(true);
         let mut first: Vec<Result<StartRun, String>> = Vec::with_capacity(starts.len());
         let mut known: Vec<(Vec<f64>, f64)> = Vec::new();
         let mut next = 0;
@@ -177,7 +183,7 @@ pub(super) fn fit_chain_coarse(
                 WAVE.min(starts.len() - next)
             };
             let out = par_map(&starts[next..next + wave], threads, |t| {
-                run_coarse(&coarse, t.as_slice(), &coarse_lm, &known)
+                gate.run(|| run_coarse(&coarse, t.as_slice(), &coarse_lm, &known))
             });
             for r in out.iter().flatten() {
                 if !r.abandoned && !known.iter().any(|k| same_optimum(&k.0, &r.theta)) {
@@ -211,7 +217,10 @@ pub(super) fn fit_chain_coarse(
                 }
             }
         }
-        let refined = par_map(&groups, threads, |g| run_one(&data, &g.0.theta, &full_lm));
+        let gate = opts.budget.gate(false);
+        let refined = par_map(&groups, threads, |g| {
+            gate.run(|| run_one(&data, &g.0.theta, &full_lm))
+        });
         for (r, g) in refined.into_iter().zip(&groups) {
             match r {
                 Ok(mut r) => {
@@ -223,7 +232,10 @@ pub(super) fn fit_chain_coarse(
             }
         }
     } else {
-        for r in par_map(&starts, threads, |t| run_one(&data, t.as_slice(), &full_lm)) {
+        let gate = opts.budget.gate(true);
+        for r in par_map(&starts, threads, |t| {
+            gate.run(|| run_one(&data, t.as_slice(), &full_lm))
+        }) {
             match r {
                 Ok(r) => {
                     total += r.evals;
@@ -314,8 +326,9 @@ pub fn select_order(
             "no candidate order given".into(),
         ));
     }
-    let fits: Vec<Result<ChainFit, IdentifyError>> =
-        candidates.iter().map(|c| fit_chain(frf, c, opts)).collect();
+    let fits = super::budget::fit_each_order(candidates, &opts.budget, opts.starts, |c| {
+        fit_chain(frf, c, opts)
+    });
     let largest = fits
         .iter()
         .filter_map(|f| f.as_ref().ok())

@@ -9,6 +9,7 @@
 //!
 //! Failures are reported as [`error::IdentifyError`].
 
+mod budget;
 pub mod detect;
 pub mod error;
 pub mod exact;

@@ -49,6 +49,9 @@ fn main() {
     let mut ratios: Vec<Vec<f64>> = vec![Vec::new(); CLASSES.len()];
     let mut times = Vec::new();
     let mut cpu_times = Vec::new();
+    // per class: one-core time of each case, and the per-stage one-core times
+    let mut class_cpu: Vec<Vec<f64>> = vec![Vec::new(); CLASSES.len()];
+    let mut class_stages: Vec<Vec<(&'static str, f64)>> = vec![Vec::new(); CLASSES.len()];
     for class in &classes {
         let ci = CLASSES.iter().position(|c| c == class).unwrap();
         for k in 0..per_class {
@@ -75,8 +78,10 @@ fn main() {
                 },
             );
             let secs = t.elapsed().as_secs_f64();
+            let cpu = thread_cpu_s() - c0;
             times.push(secs);
-            cpu_times.push(thread_cpu_s() - c0);
+            cpu_times.push(cpu);
+            class_cpu[ci].push(cpu);
             let truth: serde_json::Value =
                 serde_json::from_str(&std::fs::read_to_string(&case.truth_path).unwrap()).unwrap();
             let want = truth["effect"].as_str().unwrap();
@@ -94,8 +99,14 @@ fn main() {
                         .take(3)
                         .map(|r| format!("{}:{:.0}", r.effect, r.score))
                         .collect();
+                    class_stages[ci].extend(d.stage_cpu_s.iter().copied());
+                    let stages: Vec<String> = d
+                        .stage_cpu_s
+                        .iter()
+                        .map(|(n, t)| format!("{}:{t:.2}", &n[..n.len().min(6)]))
+                        .collect();
                     println!(
-                        "{want:20} seed {seed:5} -> {:20} gap {:.3} -> {:.3} dB ({:.2}) chi2r {:.2} {} [{}] {:.2} s",
+                        "{want:20} seed {seed:5} -> {:20} gap {:.3} -> {:.3} dB ({:.3}) chi2r {:.2} {} [{}] wall {secs:.2} s, one core {cpu:.2} s [{}]",
                         d.verdict,
                         d.gap.before_rms_db,
                         d.gap.after_rms_db,
@@ -103,7 +114,7 @@ fn main() {
                         d.residual.reduced_chi2,
                         if d.residual.nonlinear { "NL" } else { "L" },
                         top.join(" "),
-                        secs
+                        stages.join(" ")
                     );
                     if std::env::var_os("WITHHELD_VERBOSE").is_some() {
                         println!("{}", truth);
@@ -157,6 +168,39 @@ fn main() {
     // diagnosis is single-threaded; its thread's CPU time is the one-core time (the wall
     // time is inflated when the machine is shared), both reported against the target
     const TARGET_S: f64 = 2.0;
+    println!("\none-core time per case and class (target {TARGET_S} s): median / max, ratio to the target; per stage: median [s]");
+    for (ci, c) in CLASSES.iter().enumerate() {
+        let mut t = class_cpu[ci].clone();
+        if t.is_empty() {
+            continue;
+        }
+        t.sort_by(f64::total_cmp);
+        let (med, max) = (t[t.len() / 2], *t.last().unwrap());
+        let mut names: Vec<&str> = Vec::new();
+        for (n, _) in &class_stages[ci] {
+            if !names.contains(n) {
+                names.push(n);
+            }
+        }
+        let stages: Vec<String> = names
+            .iter()
+            .map(|n| {
+                let mut v: Vec<f64> = class_stages[ci]
+                    .iter()
+                    .filter(|(m, _)| m == n)
+                    .map(|s| s.1)
+                    .collect();
+                v.sort_by(f64::total_cmp);
+                format!("{}:{:.2}", &n[..n.len().min(6)], v[v.len() / 2])
+            })
+            .collect();
+        println!(
+            "{c:20} {med:.2} / {max:.2} s  ({:.2} / {:.2} x target)  [{}]",
+            med / TARGET_S,
+            max / TARGET_S,
+            stages.join(" ")
+        );
+    }
     for (what, t) in [("CPU (one core)", &mut cpu_times), ("wall", &mut times)] {
         t.sort_by(f64::total_cmp);
         if let Some(&max) = t.last() {

@@ -153,13 +153,10 @@ fn main() {
     }
     println!("\ngap ratio after/before (diagnosis's verdict), per class: median / worst");
     for (ci, c) in CLASSES.iter().enumerate() {
-        let mut r = ratios[ci].clone();
-        if r.is_empty() {
+        let Some((med, worst)) = median_max(&ratios[ci]) else {
             continue;
-        }
-        r.sort_by(f64::total_cmp);
-        let worst = *r.last().unwrap();
-        println!("{c:20} {:.3} / {:.3}", r[r.len() / 2], worst);
+        };
+        println!("{c:20} {med:.3} / {worst:.3}");
         if *c != "none" {
             ok &= worst <= 0.5;
         }
@@ -170,12 +167,9 @@ fn main() {
     const TARGET_S: f64 = 2.0;
     println!("\none-core time per case and class (target {TARGET_S} s): median / max, ratio to the target; per stage: median [s]");
     for (ci, c) in CLASSES.iter().enumerate() {
-        let mut t = class_cpu[ci].clone();
-        if t.is_empty() {
+        let Some((med, max)) = median_max(&class_cpu[ci]) else {
             continue;
-        }
-        t.sort_by(f64::total_cmp);
-        let (med, max) = (t[t.len() / 2], *t.last().unwrap());
+        };
         let mut names: Vec<&str> = Vec::new();
         for (n, _) in &class_stages[ci] {
             if !names.contains(n) {
@@ -185,13 +179,13 @@ fn main() {
         let stages: Vec<String> = names
             .iter()
             .map(|n| {
-                let mut v: Vec<f64> = class_stages[ci]
+                let v: Vec<f64> = class_stages[ci]
                     .iter()
                     .filter(|(m, _)| m == n)
                     .map(|s| s.1)
                     .collect();
-                v.sort_by(f64::total_cmp);
-                format!("{}:{:.2}", &n[..n.len().min(6)], v[v.len() / 2])
+                let med = median_max(&v).map_or(f64::NAN, |m| m.0);
+                format!("{}:{med:.2}", &n[..n.len().min(6)])
             })
             .collect();
         println!(
@@ -201,10 +195,8 @@ fn main() {
             stages.join(" ")
         );
     }
-    for (what, t) in [("CPU (one core)", &mut cpu_times), ("wall", &mut times)] {
-        t.sort_by(f64::total_cmp);
-        if let Some(&max) = t.last() {
-            let med = t[t.len() / 2];
+    for (what, t) in [("CPU (one core)", &cpu_times), ("wall", &times)] {
+        if let Some((med, max)) = median_max(t) {
             println!(
                 "diagnosis time per case (2 levels, 3 masses), {what}: median {med:.2} s, max {max:.2} s; median/target {:.2}, max/target {:.2} (target {TARGET_S} s)",
                 med / TARGET_S,
@@ -212,7 +204,7 @@ fn main() {
             );
         }
     }
-    let speed_ok = cpu_times.last().is_some_and(|&m| m < TARGET_S);
+    let speed_ok = median_max(&cpu_times).is_some_and(|(_, m)| m < TARGET_S);
     println!(
         "speed target (every case under {TARGET_S} s of one core): {}",
         if speed_ok { "met" } else { "MISSED" }
@@ -226,6 +218,13 @@ fn main() {
     if !ok && std::env::var("FLEXID_BENCH_STRICT").is_ok_and(|v| v == "1") {
         std::process::exit(1);
     }
+}
+
+/// Median and maximum (None when empty).
+fn median_max(v: &[f64]) -> Option<(f64, f64)> {
+    let mut s = v.to_vec();
+    s.sort_by(f64::total_cmp);
+    Some((*s.get(s.len() / 2)?, *s.last()?))
 }
 
 /// CPU time of the calling thread [s].

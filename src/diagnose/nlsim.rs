@@ -337,12 +337,11 @@ mod tests {
     /// The unrolled fixed-size steps give the row-by-row product to the bit.
     #[test]
     fn fixed_size_steps_equal_the_row_by_row_product() {
-        let mut seed = 7u64;
+        // counter-based pseudo-random numbers in [-0.5, 0.5)
+        let mut i = 0.0f64;
         let mut rnd = || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+            i += 1.0;
+            ((i * 12.9898).sin() * 43758.5453).fract() * 0.5
         };
         for ns in [4usize, 6, 8] {
             let ad = nalgebra::DMatrix::from_fn(ns, ns, |_, _| rnd());

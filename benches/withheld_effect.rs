@@ -49,6 +49,9 @@ fn main() {
     let mut ratios: Vec<Vec<f64>> = vec![Vec::new(); CLASSES.len()];
     let mut times = Vec::new();
     let mut cpu_times = Vec::new();
+    // per class: one-core time of each case, and the per-stage one-core times
+    let mut class_cpu: Vec<Vec<f64>> = vec![Vec::new(); CLASSES.len()];
+    let mut class_stages: Vec<Vec<(&'static str, f64)>> = vec![Vec::new(); CLASSES.len()];
     for class in &classes {
         let ci = CLASSES.iter().position(|c| c == class).unwrap();
         for k in 0..per_class {
@@ -75,8 +78,10 @@ fn main() {
                 },
             );
             let secs = t.elapsed().as_secs_f64();
+            let cpu = thread_cpu_s() - c0;
             times.push(secs);
-            cpu_times.push(thread_cpu_s() - c0);
+            cpu_times.push(cpu);
+            class_cpu[ci].push(cpu);
             let truth: serde_json::Value =
                 serde_json::from_str(&std::fs::read_to_string(&case.truth_path).unwrap()).unwrap();
             let want = truth["effect"].as_str().unwrap();
@@ -94,8 +99,14 @@ fn main() {
                         .take(3)
                         .map(|r| format!("{}:{:.0}", r.effect, r.score))
                         .collect();
+                    class_stages[ci].extend(d.stage_cpu_s.iter().copied());
+                    let stages: Vec<String> = d
+                        .stage_cpu_s
+                        .iter()
+                        .map(|(n, t)| format!("{}:{t:.2}", &n[..n.len().min(6)]))
+                        .collect();
                     println!(
-                        "{want:20} seed {seed:5} -> {:20} gap {:.3} -> {:.3} dB ({:.2}) chi2r {:.2} {} [{}] {:.2} s",
+                        "{want:20} seed {seed:5} -> {:20} gap {:.3} -> {:.3} dB ({:.3}) chi2r {:.2} {} [{}] wall {secs:.2} s, one core {cpu:.2} s [{}]",
                         d.verdict,
                         d.gap.before_rms_db,
                         d.gap.after_rms_db,
@@ -103,7 +114,7 @@ fn main() {
                         d.residual.reduced_chi2,
                         if d.residual.nonlinear { "NL" } else { "L" },
                         top.join(" "),
-                        secs
+                        stages.join(" ")
                     );
                     if std::env::var_os("WITHHELD_VERBOSE").is_some() {
                         println!("{}", truth);
@@ -142,13 +153,10 @@ fn main() {
     }
     println!("\ngap ratio after/before (diagnosis's verdict), per class: median / worst");
     for (ci, c) in CLASSES.iter().enumerate() {
-        let mut r = ratios[ci].clone();
-        if r.is_empty() {
+        let Some((med, worst)) = median_max(&ratios[ci]) else {
             continue;
-        }
-        r.sort_by(f64::total_cmp);
-        let worst = *r.last().unwrap();
-        println!("{c:20} {:.3} / {:.3}", r[r.len() / 2], worst);
+        };
+        println!("{c:20} {med:.3} / {worst:.3}");
         if *c != "none" {
             ok &= worst <= 0.5;
         }
@@ -157,10 +165,38 @@ fn main() {
     // diagnosis is single-threaded; its thread's CPU time is the one-core time (the wall
     // time is inflated when the machine is shared), both reported against the target
     const TARGET_S: f64 = 2.0;
-    for (what, t) in [("CPU (one core)", &mut cpu_times), ("wall", &mut times)] {
-        t.sort_by(f64::total_cmp);
-        if let Some(&max) = t.last() {
-            let med = t[t.len() / 2];
+    println!("\none-core time per case and class (target {TARGET_S} s): median / max, ratio to the target; per stage: median [s]");
+    for (ci, c) in CLASSES.iter().enumerate() {
+        let Some((med, max)) = median_max(&class_cpu[ci]) else {
+            continue;
+        };
+        let mut names: Vec<&str> = Vec::new();
+        for (n, _) in &class_stages[ci] {
+            if !names.contains(n) {
+                names.push(n);
+            }
+        }
+        let stages: Vec<String> = names
+            .iter()
+            .map(|n| {
+                let v: Vec<f64> = class_stages[ci]
+                    .iter()
+                    .filter(|(m, _)| m == n)
+                    .map(|s| s.1)
+                    .collect();
+                let med = median_max(&v).map_or(f64::NAN, |m| m.0);
+                format!("{}:{med:.2}", &n[..n.len().min(6)])
+            })
+            .collect();
+        println!(
+            "{c:20} {med:.2} / {max:.2} s  ({:.2} / {:.2} x target)  [{}]",
+            med / TARGET_S,
+            max / TARGET_S,
+            stages.join(" ")
+        );
+    }
+    for (what, t) in [("CPU (one core)", &cpu_times), ("wall", &times)] {
+        if let Some((med, max)) = median_max(t) {
             println!(
                 "diagnosis time per case (2 levels, 3 masses), {what}: median {med:.2} s, max {max:.2} s; median/target {:.2}, max/target {:.2} (target {TARGET_S} s)",
                 med / TARGET_S,
@@ -168,7 +204,7 @@ fn main() {
             );
         }
     }
-    let speed_ok = cpu_times.last().is_some_and(|&m| m < TARGET_S);
+    let speed_ok = median_max(&cpu_times).is_some_and(|(_, m)| m < TARGET_S);
     println!(
         "speed target (every case under {TARGET_S} s of one core): {}",
         if speed_ok { "met" } else { "MISSED" }
@@ -182,6 +218,13 @@ fn main() {
     if !ok && std::env::var("FLEXID_BENCH_STRICT").is_ok_and(|v| v == "1") {
         std::process::exit(1);
     }
+}
+
+/// Median and maximum (None when empty).
+fn median_max(v: &[f64]) -> Option<(f64, f64)> {
+    let mut s = v.to_vec();
+    s.sort_by(f64::total_cmp);
+    Some((*s.get(s.len() / 2)?, *s.last()?))
 }
 
 /// CPU time of the calling thread [s].

@@ -294,6 +294,35 @@ pub struct Diagnosis {
     pub data: Data,
     pub notes: Vec<String>,
     pub seconds: f64,
+    /// CPU time of the diagnosing thread per stage [s], in order: `prepare` (the measured
+    /// FRFs), `nominal` (identification and joint fit), `residual`, each candidate fitted
+    /// (by effect name), `rank` (ranking and gap). Empty where the thread's CPU time is not
+    /// available.
+    pub stage_cpu_s: Vec<(&'static str, f64)>,
+}
+
+/// Per-stage CPU time of the calling thread (see [`Diagnosis::stage_cpu_s`]).
+struct StageClock {
+    last: Option<u64>,
+    stages: Vec<(&'static str, f64)>,
+}
+
+impl StageClock {
+    fn start() -> Self {
+        StageClock {
+            last: crate::rt::clock::thread_cpu_ns(),
+            stages: Vec::new(),
+        }
+    }
+
+    /// Close the stage `name` (the CPU time since the previous one).
+    fn lap(&mut self, name: &'static str) {
+        let now = crate::rt::clock::thread_cpu_ns();
+        if let (Some(a), Some(b)) = (self.last, now) {
+            self.stages.push((name, b.saturating_sub(a) as f64 * 1e-9));
+        }
+        self.last = now;
+    }
 }
 
 fn nominal_start(
@@ -349,7 +378,9 @@ fn nominal_start(
 /// excitation amplitude).
 pub fn diagnose(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Diagnosis, DiagnoseError> {
     let t0 = std::time::Instant::now();
+    let mut stage = StageClock::start();
     let data = prepare(recs, opts)?;
+    stage.lap("prepare");
     let mut notes = Vec::new();
     let n = opts.masses.max(1);
     let top = (0..data.levels.len())
@@ -419,21 +450,26 @@ pub fn diagnose(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Diagnosis,
         }
     };
     let nominal = effects::finish_linear(&data, "none", nom_lin.clone(), vec![], 0);
+    stage.lap("nominal");
 
     // what the residual is made of
     let residual = residual_kind(&data, &nominal);
+    stage.lap("residual");
 
     let mut fits: Vec<EffectFit> = Vec::new();
     let mut clock = std::time::Instant::now();
-    let mut push =
-        |fits: &mut Vec<EffectFit>, e: Option<EffectFit>, name: &str, notes: &mut Vec<String>| {
-            notes.push(format!("{name}: {:.2} s", clock.elapsed().as_secs_f64()));
-            clock = std::time::Instant::now();
-            match e {
-                Some(e) => fits.push(e),
-                None => notes.push(format!("{name}: no fit")),
-            }
-        };
+    let mut push = |fits: &mut Vec<EffectFit>,
+                    e: Option<EffectFit>,
+                    name: &'static str,
+                    notes: &mut Vec<String>| {
+        notes.push(format!("{name}: {:.2} s", clock.elapsed().as_secs_f64()));
+        stage.lap(name);
+        clock = std::time::Instant::now();
+        match e {
+            Some(e) => fits.push(e),
+            None => notes.push(format!("{name}: no fit")),
+        }
+    };
     push(
         &mut fits,
         effects::delay::fit(&data, &nom_lin),
@@ -537,6 +573,7 @@ pub fn diagnose(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Diagnosis,
     let winner = win.map(|i| fits[i].clone());
     let verdict = winner.as_ref().map(|w| w.effect).unwrap_or("none");
     let gap = gap_of(&data, &nominal, winner.as_ref());
+    stage.lap("rank");
     Ok(Diagnosis {
         verdict,
         masses: n,
@@ -548,6 +585,7 @@ pub fn diagnose(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Diagnosis,
         data,
         notes,
         seconds: t0.elapsed().as_secs_f64(),
+        stage_cpu_s: stage.stages,
     })
 }
 

@@ -34,22 +34,63 @@ pub enum Nl {
 /// Finer steps per sub-step around a backlash contact change.
 const MICRO: usize = 8;
 
-/// One exact ZOH step of a linear mode: `x' = A x + bu u + bc fc`.
+/// One exact ZOH step of a linear mode: `x' = A x + bu u + bc fc`, `A` stored column by
+/// column so that the step is `ns` vector updates (every row still sums its terms in the
+/// order `bu u + bc fc + a_0 x_0 + a_1 x_1 + ...`, so the result is the same to the bit as
+/// the row-by-row product of [`Prop::apply_rows`]).
 struct Prop {
+    /// `A` column-major: `a[c * ns + r] = A[r][c]`.
     a: Vec<f64>,
     bu: Vec<f64>,
     bc: Vec<f64>,
 }
 
 impl Prop {
-    #[inline]
-    fn apply(&self, x: &[f64], xn: &mut [f64], u: f64, fc: f64) {
+    fn new(ad: &nalgebra::DMatrix<f64>, bu: Vec<f64>, bc: Vec<f64>) -> Self {
+        let ns = ad.nrows();
+        Prop {
+            a: (0..ns * ns).map(|i| ad[(i % ns, i / ns)]).collect(),
+            bu,
+            bc,
+        }
+    }
+
+    /// The step with `N` states known at compile time (`N = 0`: any size).
+    #[inline(always)]
+    fn apply<const N: usize>(&self, x: &[f64], xn: &mut [f64], u: f64, fc: f64) {
+        if N == 0 {
+            self.apply_rows(x, xn, u, fc)
+        } else {
+            self.apply_fixed::<N>(x, xn, u, fc)
+        }
+    }
+
+    #[inline(always)]
+    fn apply_fixed<const N: usize>(&self, x: &[f64], xn: &mut [f64], u: f64, fc: f64) {
+        let x: &[f64; N] = x.try_into().expect("state size");
+        let bu: &[f64; N] = self.bu[..].try_into().expect("state size");
+        let bc: &[f64; N] = self.bc[..].try_into().expect("state size");
+        let mut s = [0.0; N];
+        for r in 0..N {
+            s[r] = bu[r] * u + bc[r] * fc;
+        }
+        for (c, col) in self.a.chunks_exact(N).enumerate().take(N) {
+            let col: &[f64; N] = col.try_into().expect("state size");
+            let xc = x[c];
+            for r in 0..N {
+                s[r] += col[r] * xc;
+            }
+        }
+        xn.copy_from_slice(&s);
+    }
+
+    /// The plain row-by-row product (any size; the reference of [`Prop::apply_fixed`]).
+    fn apply_rows(&self, x: &[f64], xn: &mut [f64], u: f64, fc: f64) {
         let ns = x.len();
         for (r, out) in xn.iter_mut().enumerate() {
-            let row = &self.a[r * ns..(r + 1) * ns];
             let mut s = self.bu[r] * u + self.bc[r] * fc;
-            for (a, xv) in row.iter().zip(x) {
-                s += a * xv;
+            for (c, xv) in x.iter().enumerate() {
+                s += self.a[c * ns + r] * xv;
             }
             *out = s;
         }
@@ -77,9 +118,6 @@ pub fn simulate(lin: &LinExt, nl: Nl, u: &[f64], fs: f64, substeps: usize) -> Si
     let sub = substeps.max(1);
     let dt = 1.0 / fs / sub as f64;
     let ns = a.nrows();
-    let flat = |m: &nalgebra::DMatrix<f64>| -> Vec<f64> {
-        (0..ns * ns).map(|i| m[(i / ns, i % ns)]).collect()
-    };
     let col = |bd: &nalgebra::DMatrix<f64>, j: usize| -> Vec<f64> {
         if j < bd.ncols() {
             (0..ns).map(|r| bd[(r, j)]).collect()
@@ -89,11 +127,7 @@ pub fn simulate(lin: &LinExt, nl: Nl, u: &[f64], fs: f64, substeps: usize) -> Si
     };
     let prop = |a: &nalgebra::DMatrix<f64>, b: &nalgebra::DMatrix<f64>, t: f64| {
         let (ad, bd) = zoh(a, b, t);
-        Prop {
-            a: flat(&ad),
-            bu: col(&bd, 0),
-            bc: col(&bd, 2),
-        }
+        Prop::new(&ad, col(&bd, 0), col(&bd, 2))
     };
     let (_, bd) = zoh(&a, &b, dt);
     let bm = if n > 1 { col(&bd, 1) } else { col(&bd, 0) };
@@ -119,6 +153,49 @@ pub fn simulate(lin: &LinExt, nl: Nl, u: &[f64], fs: f64, substeps: usize) -> Si
     } else {
         0.0
     };
+    let s = Setup {
+        n,
+        k,
+        c,
+        sub,
+        lin_p,
+        modes,
+        bm,
+    };
+    // fixed state sizes (the chain's 2n states, no current loop) unroll and vectorise
+    match ns {
+        4 => integrate::<4>(&s, nl, u),
+        6 => integrate::<6>(&s, nl, u),
+        8 => integrate::<8>(&s, nl, u),
+        _ => integrate::<0>(&s, nl, u),
+    }
+}
+
+/// What [`simulate`] integrates with: the propagators and the effect's coupling.
+struct Setup {
+    n: usize,
+    k: usize,
+    c: f64,
+    sub: usize,
+    lin_p: Prop,
+    /// Backlash: free flight over a sub-step, contact and free flight over a micro-step.
+    modes: Option<[Prop; 3]>,
+    /// Input column of a motor torque over a sub-step.
+    bm: Vec<f64>,
+}
+
+/// The time loop of [`simulate`], `N` states (`N = 0`: any number).
+fn integrate<const N: usize>(s: &Setup, nl: Nl, u: &[f64]) -> SimOut {
+    let Setup {
+        n,
+        k,
+        c,
+        sub,
+        ref lin_p,
+        ref modes,
+        ref bm,
+    } = *s;
+    let ns = bm.len();
     let mut x: Vec<f64> = vec![0.0; ns];
     let mut xn: Vec<f64> = vec![0.0; ns];
     let mut xt: Vec<f64> = vec![0.0; ns];
@@ -136,7 +213,7 @@ pub fn simulate(lin: &LinExt, nl: Nl, u: &[f64], fs: f64, substeps: usize) -> Si
             *s += dx * dx;
         }
         for _ in 0..sub {
-            match (nl, &modes) {
+            match (nl, modes) {
                 (Nl::Backlash { g, .. }, Some([free, lin_m, free_m])) => {
                     let side = |x: &[f64]| {
                         let dx = x[k + 1] - x[k];
@@ -147,14 +224,14 @@ pub fn simulate(lin: &LinExt, nl: Nl, u: &[f64], fs: f64, substeps: usize) -> Si
                         }
                     };
                     let s0 = side(&x);
-                    let p = if s0 == 0.0 { free } else { &lin_p };
-                    p.apply(&x, &mut xn, uk, -c * g * s0);
+                    let p = if s0 == 0.0 { free } else { lin_p };
+                    p.apply::<N>(&x, &mut xn, uk, -c * g * s0);
                     if side(&xn) != s0 {
                         xt.copy_from_slice(&x);
                         for _ in 0..MICRO {
                             let sj = side(&xt);
                             let p = if sj == 0.0 { free_m } else { lin_m };
-                            p.apply(&xt, &mut xn, uk, -c * g * sj);
+                            p.apply::<N>(&xt, &mut xn, uk, -c * g * sj);
                             std::mem::swap(&mut xt, &mut xn);
                         }
                         std::mem::swap(&mut xt, &mut xn);
@@ -164,10 +241,10 @@ pub fn simulate(lin: &LinExt, nl: Nl, u: &[f64], fs: f64, substeps: usize) -> Si
                     let dx = x[k + 1] - x[k];
                     let r = dx / xref;
                     let fc = c * dx * r * r;
-                    lin_p.apply(&x, &mut xn, uk, 1.5 * fc - 0.5 * fc_prev);
+                    lin_p.apply::<N>(&x, &mut xn, uk, 1.5 * fc - 0.5 * fc_prev);
                     fc_prev = fc;
                 }
-                _ => lin_p.apply(&x, &mut xn, uk, 0.0),
+                _ => lin_p.apply::<N>(&x, &mut xn, uk, 0.0),
             }
             if let Nl::Friction { tc } = nl {
                 let b = bm[n];
@@ -206,10 +283,19 @@ pub fn sim_frf(
     keep: &[usize],
     out: &SimOut,
 ) -> Option<Vec<Complex64>> {
-    let mut r = rec.clone();
-    let n = out.pos.len();
-    r.time_s.truncate(n);
-    r.torque_cmd_nm.truncate(n);
+    let n = out.pos.len().min(rec.len());
+    // the recording's description with the simulated motion (the measured columns are
+    // not copied)
+    let mut r = Recording {
+        time_s: rec.time_s[..n.min(rec.time_s.len())].to_vec(),
+        torque_cmd_nm: rec.torque_cmd_nm[..n].to_vec(),
+        position_rad: None,
+        velocity_rad_s: None,
+        acceleration_rad_s2: None,
+        torque_actual_nm: None,
+        sample_rate_hz: rec.sample_rate_hz,
+        sidecar: rec.sidecar.clone(),
+    };
     if n < rec.len() {
         // a shortened simulation (the search): its steady periods only
         if let Some(e) = r.sidecar.excitation.as_mut() {
@@ -221,23 +307,10 @@ pub fn sim_frf(
         }
     }
     match rec.preferred_motion()?.0 {
-        MotionSignal::Position => {
-            r.position_rad = Some(out.pos.clone());
-            r.velocity_rad_s = None;
-        }
-        MotionSignal::Velocity => {
-            r.velocity_rad_s = Some(out.vel.clone());
-            r.position_rad = None;
-        }
+        MotionSignal::Position => r.position_rad = Some(out.pos[..n].to_vec()),
+        MotionSignal::Velocity => r.velocity_rad_s = Some(out.vel[..n].to_vec()),
         MotionSignal::Acceleration => return None,
     }
-    for v in [&mut r.position_rad, &mut r.velocity_rad_s]
-        .into_iter()
-        .flatten()
-    {
-        v.truncate(n);
-    }
-    r.acceleration_rad_s2 = None;
     let e = estimate_frf(&r, band).ok()?;
     keep.iter().map(|&i| e.frf.h.get(i).copied()).collect()
 }
@@ -259,6 +332,40 @@ mod tests {
                 v
             })
             .collect()
+    }
+
+    /// The unrolled fixed-size steps give the row-by-row product to the bit.
+    #[test]
+    fn fixed_size_steps_equal_the_row_by_row_product() {
+        // counter-based pseudo-random numbers in [-0.5, 0.5)
+        let mut i = 0.0f64;
+        let mut rnd = || {
+            i += 1.0;
+            ((i * 12.9898).sin() * 43758.5453).fract() * 0.5
+        };
+        for ns in [4usize, 6, 8] {
+            let ad = nalgebra::DMatrix::from_fn(ns, ns, |_, _| rnd());
+            let p = Prop::new(
+                &ad,
+                (0..ns).map(|_| rnd()).collect(),
+                (0..ns).map(|_| rnd()).collect(),
+            );
+            let x: Vec<f64> = (0..ns).map(|_| rnd()).collect();
+            let (mut fast, mut slow) = (vec![0.0; ns], vec![0.0; ns]);
+            match ns {
+                4 => p.apply::<4>(&x, &mut fast, 0.3, -1.7),
+                6 => p.apply::<6>(&x, &mut fast, 0.3, -1.7),
+                _ => p.apply::<8>(&x, &mut fast, 0.3, -1.7),
+            }
+            p.apply_rows(&x, &mut slow, 0.3, -1.7);
+            assert_eq!(fast, slow, "{ns} states");
+            // and the row-major matrix itself: A x + bu u + bc fc
+            let want = &ad * nalgebra::DVector::from_vec(x.clone());
+            for r in 0..ns {
+                let w = want[r] + p.bu[r] * 0.3 - p.bc[r] * 1.7;
+                assert!((fast[r] - w).abs() < 1e-12, "{ns}: row {r}");
+            }
+        }
     }
 
     fn rms_diff(a: &[f64], b: &[f64]) -> f64 {

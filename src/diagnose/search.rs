@@ -1,7 +1,9 @@
 //! The parameter search of an amplitude-dependent effect: simulate the chain + effect on
 //! every recorded excitation, estimate the FRFs like the measurement's, and minimise the
-//! chi² over one scale parameter (log grid, then golden section), correcting the chain in
-//! between (a joint linear refit on the measurement with the simulated effect divided out).
+//! chi². Friction ([`fit_nonlinear`]): over one scale parameter (log grid, then golden
+//! section), correcting the chain in between (a joint linear refit on the measurement with
+//! the simulated effect divided out). Spring nonlinearities ([`fit_spring`]): started from
+//! the effect's describing function on the per-level linear fits, refined by a simplex.
 
 use super::effects::{fit_linear, EffectFit, Lin, Param, Target};
 use super::lti::{Discrete, LinExt};

@@ -17,8 +17,8 @@ pub fn stiffening(x_ref_rad: f64, defl_rms_rad: f64) -> f64 {
 }
 
 /// Hardening as the per-level fits see it, started from the low level's chain (the least
-/// stiffened); `x_ref` searched in 0.3-100x the coupling's RMS deflection there when the
-/// describing function gives no start.
+/// stiffened); `x_ref` searched in 1.2-400x the coupling's RMS deflection there (about
+/// 0.3-100x at the high level) when the describing function gives no start.
 pub const SPRING: Spring = Spring {
     equivalent: stiffening,
     damping_follows: false,

@@ -38,12 +38,11 @@ fn diagnose_withheld_effect_two_cases_per_class() {
                 "{class} seed {seed}: {} ({:.3} -> {:.3} dB)",
                 d.verdict, d.gap.before_rms_db, d.gap.after_rms_db
             );
-            // the target is a ratio of 0.5 for every class but `none`; backlash and
-            // hardening do not reach it on these seeds (see README, Diagnosis): they are
-            // held to a shrinking gap
+            // the target: the gap at least halved for every class but `none`
+            // (backlash and hardening reach it on these seeds, not on every case of the
+            // benchmark: see README, Withheld-effect benchmark)
             let limit = match *class {
                 "none" => f64::INFINITY,
-                "backlash" | "hardening_stiffness" => 0.95,
                 _ => 0.5,
             };
             if d.verdict != truth["effect"].as_str().unwrap() || ratio > limit {

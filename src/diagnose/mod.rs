@@ -15,6 +15,7 @@ pub mod nlsim;
 pub mod rank;
 pub mod report;
 pub mod search;
+pub mod simplex;
 
 use crate::analysis::{analyze, estimate_frf, AnalysisOptions};
 use crate::frf::{FrfKind, NonExcitedLevels};

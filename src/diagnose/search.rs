@@ -1,11 +1,14 @@
 //! The parameter search of an amplitude-dependent effect: simulate the chain + effect on
 //! every recorded excitation, estimate the FRFs like the measurement's, and minimise the
-//! chi² over one scale parameter (log grid, then golden section), correcting the chain in
-//! between (a joint linear refit on the measurement with the simulated effect divided out).
+//! chi². Friction ([`fit_nonlinear`]): over one scale parameter (log grid, then golden
+//! section), correcting the chain in between (a joint linear refit on the measurement with
+//! the simulated effect divided out). Spring nonlinearities ([`fit_spring`]): started from
+//! the effect's describing function on the per-level linear fits, refined by a simplex.
 
 use super::effects::{fit_linear, EffectFit, Lin, Param, Target};
 use super::lti::{Discrete, LinExt};
 use super::nlsim::{sim_frf, simulate, Nl};
+use super::simplex;
 use super::Data;
 use num_complex::Complex64;
 
@@ -231,36 +234,186 @@ fn finish(
     })
 }
 
-/// A nonlinear effect of one coupling (backlash, hardening): [`fit_nonlinear`] on each
-/// coupling `k`, its parameter searched in `[lo, hi] x` the coupling's RMS deflection
-/// (at the lowest level when `lowest_level`, else the highest); the best fit, with the
-/// coupling index added as a parameter.
-#[allow(clippy::too_many_arguments)]
-pub fn fit_per_coupling(
-    data: &Data,
-    nominal: &LinExt,
-    lowest_level: bool,
-    effect: &'static str,
-    pname: &str,
-    lo: f64,
-    hi: f64,
-    make: impl Fn(usize, f64) -> Nl,
-) -> Option<EffectFit> {
-    let mut best: Option<EffectFit> = None;
-    for k in 0..nominal.chain.masses().saturating_sub(1) {
-        let x = data.deflection_rms(nominal, k, lowest_level);
-        if !(x > 0.0) {
-            continue;
+/// A spring nonlinearity of one coupling as the per-level linear fits see it: its
+/// describing function (the equivalent stiffness under a Gaussian deflection).
+pub struct Spring {
+    /// Equivalent stiffness as a multiple of the true one, for the effect's parameter `p`
+    /// [rad] and the RMS deflection [rad].
+    pub equivalent: fn(f64, f64) -> f64,
+    /// The coupling's damping scales like its stiffness (contact lost in a gap).
+    pub damping_follows: bool,
+    /// The chain of the highest level's fit is the start (else the lowest's): the level at
+    /// which the fitted chain is closest to the true one.
+    pub high_level_chain: bool,
+    /// Search range of `p` as multiples of the RMS deflection at that level, when the
+    /// describing function gives no start.
+    pub range: (f64, f64),
+}
+
+/// Cost evaluations of the simplex refinement of a spring nonlinearity, per round.
+pub const SPRING_REFINE_EVALS: [usize; 2] = [40, 24];
+
+/// Start factors of the effect's parameter around the describing-function solution.
+const AROUND: [f64; 4] = [1.0, 1.5, 2.2, 3.2];
+
+/// The effect's parameter at which the describing function reproduces the equivalent
+/// stiffnesses `c_lo`, `c_hi` seen at RMS deflections `s_lo < s_hi` (bisection on `ln p`
+/// over `[1e-4 s_lo, 1e3 s_hi]`, bracketed by doubling); `None` when no parameter in that range does.
+pub fn describing_solution(
+    equivalent: fn(f64, f64) -> f64,
+    c_lo: f64,
+    s_lo: f64,
+    c_hi: f64,
+    s_hi: f64,
+) -> Option<f64> {
+    if !(c_lo > 0.0 && c_hi > 0.0 && s_lo > 0.0 && s_hi > s_lo) {
+        return None;
+    }
+    let want = (c_lo / c_hi).ln();
+    let err = |lp: f64| {
+        let p = lp.exp();
+        (equivalent(p, s_lo) / equivalent(p, s_hi)).ln() - want
+    };
+    // bracket the root by doubling from the low end (the describing functions run out of
+    // range, e.g. erfc underflows, long before the upper end)
+    let a0 = (1e-4 * s_lo).ln();
+    let ea = err(a0);
+    let (mut a, mut b) = (a0, a0);
+    loop {
+        b += std::f64::consts::LN_2;
+        let eb = err(b);
+        if b > (1e3 * s_hi).ln() || !eb.is_finite() || !ea.is_finite() {
+            return None;
         }
-        let Some(mut e) = fit_nonlinear(data, nominal, effect, pname, lo * x, hi * x, false, |v| {
-            make(k, v)
-        }) else {
-            continue;
-        };
-        e.params.push(EffectFit::param("coupling", k as f64, 0.0));
-        if best.as_ref().is_none_or(|b| e.chi2 < b.chi2) {
-            best = Some(e);
+        if eb.signum() != ea.signum() {
+            break;
+        }
+        a = b;
+    }
+    for _ in 0..60 {
+        let m = 0.5 * (a + b);
+        if err(m).signum() == ea.signum() {
+            a = m;
+        } else {
+            b = m;
         }
     }
-    best
+    Some((0.5 * (a + b)).exp())
+}
+
+/// A nonlinear effect of one coupling (backlash, hardening). The chain is refitted on the
+/// lowest and the highest level alone; for each coupling the describing function turns
+/// the two equivalent stiffnesses into a start (`p`, and the true stiffness the reference
+/// level's fit implies for it); a few `p` around it (the family keeps the reference
+/// level's equivalent stiffness) are simulated, and the best start over all couplings is
+/// refined by a simplex over the coupling's stiffness, damping, the two inertias next to it
+/// and `p`. The fit, with the coupling index added as a parameter.
+pub fn fit_spring(
+    data: &Data,
+    nominal: &LinExt,
+    effect: &'static str,
+    pname: &str,
+    spring: &Spring,
+    make: impl Fn(usize, f64) -> Nl,
+) -> Option<EffectFit> {
+    let by_level = |a: &usize, b: &usize| {
+        data.levels[*a]
+            .torque_rms
+            .total_cmp(&data.levels[*b].torque_rms)
+    };
+    let lo = (0..data.levels.len()).min_by(by_level)?;
+    let hi = (0..data.levels.len()).max_by(by_level)?;
+    let level_fit = |i: usize| {
+        let lin = fit_linear(data, &data.targets[i..i + 1], Lin::None, nominal, 30)
+            .map(|r| r.0)
+            .unwrap_or_else(|| nominal.clone());
+        let u = &data.levels[i].rec.torque_cmd_nm;
+        let defl = simulate(&lin, Nl::None, u, data.fs, 1).defl_rms;
+        (lin, defl)
+    };
+    let (lin_lo, s_lo) = level_fit(lo);
+    let (lin_hi, s_hi) = if hi == lo {
+        (lin_lo.clone(), s_lo.clone())
+    } else {
+        level_fit(hi)
+    };
+    let (base, s_ref) = if spring.high_level_chain {
+        (&lin_hi, &s_hi)
+    } else {
+        (&lin_lo, &s_lo)
+    };
+    let mut best: Option<(f64, usize, LinExt, f64)> = None;
+    for k in 0..nominal.chain.masses().saturating_sub(1) {
+        let c = |l: &LinExt| l.chain.stiffness_nm_per_rad[k];
+        let p0 = describing_solution(spring.equivalent, c(&lin_lo), s_lo[k], c(&lin_hi), s_hi[k]);
+        let ps: Vec<f64> = match p0 {
+            Some(p) => AROUND.iter().map(|f| f * p).collect(),
+            None if s_ref[k] > 0.0 => {
+                let (a, b) = (spring.range.0.ln(), spring.range.1.ln());
+                (0..5)
+                    .map(|i| s_ref[k] * (a + (b - a) * i as f64 / 4.0).exp())
+                    .collect()
+            }
+            None => continue,
+        };
+        for p in ps {
+            let e = (spring.equivalent)(p, s_ref[k]).max(1e-3);
+            let mut lin = base.clone();
+            lin.chain.stiffness_nm_per_rad[k] = c(base) / e;
+            if spring.damping_follows {
+                lin.chain.damping_nms_per_rad[k] /= e;
+            }
+            let chi2 = chi2_of(data, &lin, make(k, p));
+            if chi2.is_finite() && best.as_ref().is_none_or(|b| chi2 < b.0) {
+                best = Some((chi2, k, lin, p));
+            }
+        }
+    }
+    let (_, k, lin, p) = best?;
+    let (lin, p, sig) = refine_spring(data, &lin, k, p, &make);
+    let mut e = finish(data, lin, make(k, p), effect, pname, p, sig, false)?;
+    e.params.push(EffectFit::param("coupling", k as f64, 0.0));
+    Some(e)
+}
+
+/// The simplex over coupling `k`'s stiffness `c` and damping, the inertias of its two
+/// bodies and the effect's parameter `p` on the short simulation, in logs and with the
+/// inertias relative to `c` (`ln J - ln c`: moving `c` alone keeps the frequencies, so the
+/// valley of the cost is not diagonal); restarted once from the best point with half the
+/// steps (a collapsed simplex). Returns the chain, `p` and the sigma of `ln p` (NaN: the
+/// simplex gives no curvature).
+fn refine_spring(
+    data: &Data,
+    start: &LinExt,
+    k: usize,
+    p: f64,
+    make: &impl Fn(usize, f64) -> Nl,
+) -> (LinExt, f64, f64) {
+    let ch = &start.chain;
+    let lc = ch.stiffness_nm_per_rad[k].ln();
+    let mut x = vec![
+        lc,
+        ch.damping_nms_per_rad[k].ln(),
+        ch.inertia_kgm2[k].ln() - lc,
+        ch.inertia_kgm2[k + 1].ln() - lc,
+        p.ln(),
+    ];
+    let with = |x: &[f64]| {
+        let mut l = start.clone();
+        l.chain.stiffness_nm_per_rad[k] = x[0].exp();
+        l.chain.damping_nms_per_rad[k] = x[1].exp();
+        l.chain.inertia_kgm2[k] = (x[2] + x[0]).exp();
+        l.chain.inertia_kgm2[k + 1] = (x[3] + x[0]).exp();
+        l
+    };
+    let step = [0.05, 0.3, 0.04, 0.04, 0.2];
+    for (round, evals) in SPRING_REFINE_EVALS.iter().enumerate() {
+        let scale = 0.5f64.powi(round as i32);
+        let st: Vec<f64> = step.iter().map(|s| s * scale).collect();
+        let r = simplex::minimise(&x, &st, *evals, |x| {
+            chi2_of(data, &with(x), make(k, x[4].exp()))
+        });
+        x = r.x;
+    }
+    (with(&x), x[4].exp(), f64::NAN)
 }

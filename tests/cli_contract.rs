@@ -466,5 +466,14 @@ fn demo_writes_its_four_files() {
     }
     assert!(so.contains("kg m^2"), "{so}");
     let j = read_json(&dir.join("demo/result.json"));
+    // a wrong model order says everything the demo printed (cycle counters, fit notes), so
+    // that a failure on a loaded CI host can be told apart from an identification defect
+    let masses = j["model"]["masses"].as_u64();
+    assert_eq!(
+        masses,
+        Some(plant().chain.masses() as u64),
+        "demo model: {}\n--- stdout\n{so}\n--- stderr\n{se}",
+        j["model"]
+    );
     assert_matches_plant(&j["model"], 0.03);
 }

@@ -53,9 +53,13 @@ fn sweep_over_socketcan_identifies_the_plant() {
     let stderr = String::from_utf8_lossy(&o.stderr);
     assert!(o.status.success(), "{:?}\n{stderr}", o.status);
     eprintln!(
-        "sweep over {iface} in {:.1} s: {:?} cycles/s",
+        "sweep over {iface} in {:.1} s: {:?} cycles/s; {}",
         t.elapsed().as_secs_f64(),
-        cycles_per_s(&stderr)
+        cycles_per_s(&stderr),
+        stderr
+            .lines()
+            .find(|l| l.contains(" rows in "))
+            .unwrap_or("(no summary line)")
     );
     assert_eq!(rows(&out), 4 * 1000);
     let sc = sidecar(&out);

@@ -23,15 +23,47 @@ pub(crate) fn enable(fd: RawFd) {
 /// The first call on a socket turns the kernel's stamping on (from then on every packet
 /// is stamped); where no stamp is available it is the time of the call.
 pub(crate) fn last_arrival(fd: RawFd) -> Instant {
-    let now = Instant::now();
     match kernel_stamp(fd) {
-        Some(at) => {
-            let age = SystemTime::now()
-                .duration_since(at)
-                .unwrap_or(Duration::ZERO);
-            now.checked_sub(age).unwrap_or(now)
+        Some(at) => to_instant(at, clock_pair),
+        None => Instant::now(),
+    }
+}
+
+/// One reading of both clocks: monotonic before, real time, monotonic after.
+type ClockPair = (Instant, SystemTime, Instant);
+
+fn clock_pair() -> ClockPair {
+    let m0 = Instant::now();
+    let s = SystemTime::now();
+    (m0, s, Instant::now())
+}
+
+/// Reads of the two clocks tighter than this are taken at once.
+const TIGHT: Duration = Duration::from_micros(20);
+/// At most this many reads of the two clocks per conversion.
+const READS: usize = 4;
+
+/// The monotonic instant of the real-time instant `at`, through the offset between the
+/// two clocks read back to back by `read`. The tightest of up to [`READS`] readings is
+/// used: a thread preempted between its two clock reads (a VM's vCPU stalled, a busy
+/// host) would otherwise shift the stamp by the whole stall, earlier than the SYNC it
+/// answers, and the master would drop a good TPDO as stale. Never later than the read.
+fn to_instant(at: SystemTime, mut read: impl FnMut() -> ClockPair) -> Instant {
+    let (mut m0, mut s, mut m1) = read();
+    for _ in 1..READS {
+        if m1.duration_since(m0) <= TIGHT {
+            break;
         }
-        None => now,
+        let (n0, ns, n1) = read();
+        if n1.duration_since(n0) < m1.duration_since(m0) {
+            (m0, s, m1) = (n0, ns, n1);
+        }
+    }
+    // the real-time read lies between m0 and m1: take the middle
+    let mid = m0 + m1.duration_since(m0) / 2;
+    match s.duration_since(at) {
+        Ok(age) => mid.checked_sub(age).unwrap_or(mid),
+        Err(_) => mid, // stamped "after" now: the real-time clock was stepped back
     }
 }
 
@@ -81,5 +113,59 @@ mod tests {
             "stamped only {early:?} before the read"
         );
         assert!(at.saturating_duration_since(sent) < Duration::from_millis(5));
+    }
+
+    /// Clock readings from a script: (monotonic before, real, monotonic after), each as
+    /// microseconds from a common origin.
+    fn scripted(
+        m: Instant,
+        s: SystemTime,
+        reads: &[(u64, u64, u64)],
+    ) -> impl FnMut() -> ClockPair + '_ {
+        let mut i = 0;
+        move || {
+            let (a, b, c) = reads[i.min(reads.len() - 1)];
+            i += 1;
+            let us = Duration::from_micros;
+            (m + us(a), s + us(b), m + us(c))
+        }
+    }
+
+    /// A reader preempted for 2 ms between its monotonic and real-time reads (the real
+    /// time read 2 ms late) must not move the stamp 2 ms earlier: the next, tight reading
+    /// is used. (Reading the clocks once, as before, put a TPDO that answered its SYNC
+    /// by 300 us before that SYNC, and the master dropped it: lost feedback in the VM.)
+    #[test]
+    fn a_preempted_clock_read_does_not_move_the_stamp() {
+        let m = Instant::now();
+        let s = UNIX_EPOCH + Duration::from_secs(1_700_000_000);
+        // the frame arrived at real time s + 1000 us; monotonic m + 1000 us is the same
+        // instant (offset s - m)
+        let at = s + Duration::from_micros(1000);
+        let truth = m + Duration::from_micros(1000);
+        let reads = [(1500, 3500, 3502), (3510, 3511, 3512)];
+        let got = to_instant(at, scripted(m, s, &reads));
+        let err = if got > truth {
+            got - truth
+        } else {
+            truth - got
+        };
+        assert!(err <= Duration::from_micros(2), "off by {err:?}");
+        // the stalled reading alone would be 1 ms off, which is what the tight one avoids
+        let alone = to_instant(at, scripted(m, s, &reads[..1]));
+        assert!(truth.duration_since(alone) >= Duration::from_micros(900));
+    }
+
+    /// Tight first reading: used at once; a stamp "in the future" (real time stepped
+    /// back) is clamped to the read.
+    #[test]
+    fn a_tight_reading_is_used_and_future_stamps_are_clamped() {
+        let m = Instant::now();
+        let s = UNIX_EPOCH + Duration::from_secs(1_700_000_000);
+        let reads = [(100, 101, 102), (0, 5000, 5000)];
+        let got = to_instant(s + Duration::from_micros(40), scripted(m, s, &reads));
+        assert_eq!(got, m + Duration::from_micros(40));
+        let future = to_instant(s + Duration::from_secs(1), scripted(m, s, &reads));
+        assert_eq!(future, m + Duration::from_micros(101));
     }
 }

@@ -97,6 +97,10 @@ fn refuse_local_only(a: &SweepArgs) -> Result<(), CliError> {
         (a.amplitude_exponent != 0.0, "--amplitude-exponent"),
         (a.masses.is_some(), "--masses"),
         (
+            a.max_lost.is_some(),
+            "--max-lost (the daemon's axis configuration sets it)",
+        ),
+        (
             a.profiles.is_some(),
             "--profiles (the daemon's axes name theirs)",
         ),

@@ -51,6 +51,7 @@ pub fn demo_sweep_args(plant: &PlantFile, bus: String, out: PathBuf) -> SweepArg
         amplitude_exponent: 1.0,
         max_duration_s: None,
         max_speed_rad_s: 200.0,
+        max_lost: None,
         profiles: None,
         out,
         masses: None,

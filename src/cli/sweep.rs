@@ -88,6 +88,12 @@ pub struct SweepArgs {
     /// Stop when the motor speed exceeds this [rad/s].
     #[arg(long, default_value_t = 100.0)]
     pub max_speed_rad_s: f64,
+    /// Stop when more feedback messages (TPDOs) than this are lost, i.e. not there before
+    /// the next SYNC (default: 0.5 % of the cycles, at least 20). Raise it on a host
+    /// without a real-time kernel, whose scheduling stalls of several milliseconds lose
+    /// feedback; the counts are in the recording's sidecar either way.
+    #[arg(long)]
+    pub max_lost: Option<u64>,
     /// More firmware profiles (a directory of TOML files) besides the built-in ones.
     #[arg(long)]
     pub profiles: Option<PathBuf>,
@@ -211,6 +217,9 @@ pub fn plan(a: &SweepArgs) -> Result<SweepPlan, CliError> {
             )));
         }
         p.max_duration = Some(Duration::from_secs_f64(d));
+    }
+    if let Some(n) = a.max_lost {
+        p.max_lost_tpdos = n;
     }
     Ok(p)
 }

@@ -107,6 +107,9 @@ impl CanopenBackend {
         let mut sp =
             crate::sweep::SweepPlan::new(plan.sample_rate_hz, plan.torque_nm, plan.info, pacing);
         sp.max_speed_rad_s = axis.limits.max_speed_rad_s;
+        if let Some(n) = axis.limits.max_lost_tpdos {
+            sp.max_lost_tpdos = n;
+        }
         sp.max_duration = Some(Duration::from_secs_f64(
             axis.limits.max_sweep_s.max(sp.duration_s()) + 5.0,
         ));

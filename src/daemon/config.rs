@@ -214,6 +214,11 @@ pub struct Limits {
     pub position_window_rad: f64,
     /// Longest sweep [s] (> 0).
     pub max_sweep_s: f64,
+    /// Feedback messages (TPDOs) that may be lost in one sweep before it is stopped
+    /// (default: 0.5 % of the sweep's cycles, at least 20). Raise it on a host without
+    /// a real-time kernel, whose scheduling stalls lose feedback.
+    #[serde(default)]
+    pub max_lost_tpdos: Option<u64>,
 }
 
 impl AxisConfig {
@@ -445,6 +450,15 @@ limits = { peak_torque_nm = 2.0, max_speed_rad_s = 10.0, position_window_rad = 1
         assert_eq!(c.axis.len(), 2);
         assert_eq!(c.axis[0].clock, ClockKind::Monotonic);
         assert_eq!(c.backend.kind, BackendKind::Simulated);
+        assert_eq!(c.axis[0].limits.max_lost_tpdos, None);
+        let text = GOOD.replacen(
+            "max_sweep_s = 60 }",
+            "max_sweep_s = 60, max_lost_tpdos = 200 }",
+            1,
+        );
+        let c = Config::parse(&text, "flexid.toml").unwrap();
+        assert_eq!(c.axis[0].limits.max_lost_tpdos, Some(200));
+        assert_eq!(c.axis[1].limits.max_lost_tpdos, None);
     }
 
     #[test]

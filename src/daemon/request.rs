@@ -380,6 +380,7 @@ mod tests {
                 max_speed_rad_s: 50.0,
                 position_window_rad: 10.0,
                 max_sweep_s: 60.0,
+                max_lost_tpdos: None,
             },
         }
     }

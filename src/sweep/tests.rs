@@ -382,3 +382,66 @@ fn realtime_sweep_runs_on_a_cycle_thread_on_absolute_deadlines() {
     // and the schedule kept time: the last deadline is where the grid puts it
     assert!(d[n - 1] >= t0 + period * n as u32);
 }
+
+/// A drive whose every `every`-th cycle's feedback is counted lost (as the CANopen
+/// master counts a TPDO that never came): the sweep's lost-feedback budget.
+struct LossyDrive {
+    inner: SimulatedDrive,
+    every: u64,
+    lost: u64,
+}
+
+impl flexid_canopen::CyclicDrive for LossyDrive {
+    type Error = <SimulatedDrive as flexid_canopen::CyclicDrive>::Error;
+    fn cycle(
+        &mut self,
+        torque_nm: f64,
+        deadline: std::time::Instant,
+    ) -> Result<flexid_canopen::Feedback, Self::Error> {
+        let mut fb = self.inner.cycle(torque_nm, deadline)?;
+        if fb.cycle % self.every == self.every - 1 {
+            self.lost += 1;
+        }
+        fb.counters.lost = self.lost;
+        fb.counters.missed = self.lost;
+        Ok(fb)
+    }
+    fn cycle_period(&self) -> std::time::Duration {
+        self.inner.cycle_period()
+    }
+    fn rated_torque_nm(&self) -> f64 {
+        self.inner.rated_torque_nm()
+    }
+    fn counters(&self) -> flexid_canopen::Counters {
+        let mut c = self.inner.counters();
+        c.lost = self.lost;
+        c
+    }
+}
+
+/// The default budget (0.5 % of the cycles, at least 20) stops a sweep that loses one
+/// TPDO in 50 at the 91st loss (18000 cycles: budget 90); `--max-lost` moves that limit.
+#[test]
+fn the_lost_feedback_budget_stops_the_sweep_and_max_lost_moves_it() {
+    let lossy = || LossyDrive {
+        inner: SimulatedDrive::new(&e2e_chain(), 1000.0).unwrap(),
+        every: 50,
+        lost: 0,
+    };
+    let stop = AtomicBool::new(false);
+    let p = plan(&args(&[])).unwrap();
+    assert_eq!(p.max_lost_tpdos, 90);
+    let out = run_sweep(&mut lossy(), &p, &stop, &mut quiet);
+    assert!(
+        matches!(out.reason, StopReason::FeedbackLost(_)),
+        "{:?}",
+        out.reason
+    );
+    // the 91st loss is in cycle 91 * 50 - 1
+    assert_eq!(out.recording.len(), 91 * 50);
+    let p = plan(&args(&["--max-lost", "400"])).unwrap();
+    assert_eq!(p.max_lost_tpdos, 400);
+    let out = run_sweep(&mut lossy(), &p, &stop, &mut quiet);
+    assert!(out.complete(), "{:?}", out.reason);
+    assert_eq!(out.recording.len(), 18000);
+}

@@ -15,35 +15,12 @@
 //!   torque, and the model is still right;
 //! * `demo --out DIR` writes excitation.csv, recording.csv, result.json and bode.svg.
 
+mod cli_common;
+use cli_common::{expect_code, flexid, text};
+
 use flexid::cli::plant::PlantFile;
 use serde_json::Value;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-fn flexid(args: &[&str], dir: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_flexid"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .expect("run flexid")
-}
-
-fn text(b: &[u8]) -> String {
-    String::from_utf8_lossy(b).into_owned()
-}
-
-/// Assert the exit code, showing the output on failure; return (stdout, stderr).
-fn expect_code(out: &Output, code: i32, what: &str) -> (String, String) {
-    let (so, se) = (text(&out.stdout), text(&out.stderr));
-    assert_eq!(
-        out.status.code(),
-        Some(code),
-        "{what}: exit status {:?}\n--- stdout\n{so}\n--- stderr\n{se}",
-        out.status
-    );
-    assert!(!se.contains("panicked"), "{what}: panic\n{se}");
-    (so, se)
-}
 
 fn read_json(p: &Path) -> Value {
     let t = std::fs::read_to_string(p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));

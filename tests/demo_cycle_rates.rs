@@ -6,8 +6,10 @@
 //! drive `flexid-vdrive` in lock-step, or the in-process simulation where the bus cannot be
 //! used) and every inertia and stiffness of its truth table must be within 2 %.
 
+mod cli_common;
+use cli_common::{expect_ok, flexid};
+
 use std::path::Path;
-use std::process::Command;
 
 fn demo_at(rate_hz: u32) {
     let dir = tempfile::tempdir().expect("temp dir");
@@ -21,20 +23,17 @@ fn demo_at(rate_hz: u32) {
         text.replace(line, &format!("sample_rate_hz = {rate_hz}.0")),
     )
     .expect("write plant");
-    let out = Command::new(env!("CARGO_BIN_EXE_flexid"))
-        .args(["demo", "--plant"])
-        .arg(&plant)
-        .arg("--out")
-        .arg(dir.path().join("out"))
-        .output()
-        .expect("run flexid demo");
-    let so = String::from_utf8_lossy(&out.stdout);
-    let se = String::from_utf8_lossy(&out.stderr);
-    assert!(
-        out.status.success(),
-        "{rate_hz} Hz: {:?}\n{so}\n{se}",
-        out.status
+    let out = flexid(
+        &[
+            "demo",
+            "--plant",
+            plant.to_str().expect("utf-8 path"),
+            "--out",
+            dir.path().join("out").to_str().expect("utf-8 path"),
+        ],
+        dir.path(),
     );
+    let (so, se) = expect_ok(&out, &format!("demo at {rate_hz} Hz"));
     assert!(
         se.contains(&format!("at {rate_hz} Hz")),
         "not measured at {rate_hz} Hz:\n{se}"

@@ -5,29 +5,11 @@
 //! (`time_cap`) and the stderr progress say that it was capped. No timing assertion beyond
 //! "it stopped and said so".
 
+mod cli_common;
+use cli_common::{expect_ok, flexid};
+
 use serde_json::Value;
 use std::path::Path;
-use std::process::{Command, Output};
-
-fn flexid(args: &[&str], dir: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_flexid"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .expect("run flexid")
-}
-
-fn expect_ok(out: &Output, what: &str) -> (String, String) {
-    let so = String::from_utf8_lossy(&out.stdout).into_owned();
-    let se = String::from_utf8_lossy(&out.stderr).into_owned();
-    assert!(
-        out.status.success(),
-        "{what}: {:?}\n--- stdout\n{so}\n--- stderr\n{se}",
-        out.status
-    );
-    assert!(!se.contains("panicked"), "{what}: panic\n{se}");
-    (so, se)
-}
 
 /// A multisine record of `plants/scara_all_effects.toml` (2 kHz, 0.5 Hz lines to 800 Hz,
 /// 1 + 4 periods).

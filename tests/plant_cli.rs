@@ -2,28 +2,13 @@
 //! a linear plant file keeps the exact ZOH path (same samples as `sim::simulate_position`),
 //! a file with effects goes through `PlantSim`, and a bad effect is a named input error.
 
+mod cli_common;
+use cli_common::{expect_ok, flexid};
+
 use flexid::plant::PlantFile;
 use flexid::recording::read_recording;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-fn flexid(args: &[&str], dir: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_flexid"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .expect("run flexid")
-}
-
-fn ok(out: &Output, what: &str) {
-    assert!(
-        out.status.success(),
-        "{what}: {:?}\n{}\n{}",
-        out.status,
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-}
+use std::process::Output;
 
 fn plant(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -50,7 +35,7 @@ fn excitation(dir: &Path) {
         ],
         dir,
     );
-    ok(&out, "excite");
+    expect_ok(&out, "excite");
 }
 
 fn simulate(dir: &Path, plant_path: &Path, out_name: &str) -> Output {
@@ -73,7 +58,7 @@ fn linear_plant_file_keeps_the_exact_path() {
     let dir = tempfile::tempdir().unwrap();
     excitation(dir.path());
     let p = plant("scara_shoulder.toml");
-    ok(&simulate(dir.path(), &p, "rec.csv"), "simulate");
+    expect_ok(&simulate(dir.path(), &p, "rec.csv"), "simulate");
     let rec = read_recording(dir.path().join("rec.csv")).unwrap();
     let file = PlantFile::load(Some(&p)).unwrap();
     assert!(!file.has_effects());
@@ -91,11 +76,11 @@ fn linear_plant_file_keeps_the_exact_path() {
 fn plant_file_with_effects_goes_through_plant_sim() {
     let dir = tempfile::tempdir().unwrap();
     excitation(dir.path());
-    ok(
+    expect_ok(
         &simulate(dir.path(), &plant("scara_shoulder.toml"), "lin.csv"),
         "linear",
     );
-    ok(
+    expect_ok(
         &simulate(dir.path(), &plant("scara_friction.toml"), "fr.csv"),
         "friction",
     );
@@ -119,7 +104,7 @@ fn plant_file_with_effects_goes_through_plant_sim() {
         + "\n[effects.friction]\ncoulomb_nm = 50.0\n";
     let held = dir.path().join("held.toml");
     std::fs::write(&held, text).unwrap();
-    ok(&simulate(dir.path(), &held, "held.csv"), "held");
+    expect_ok(&simulate(dir.path(), &held, "held.csv"), "held");
     let rec = read_recording(dir.path().join("held.csv")).unwrap();
     assert!(rec.position_rad.unwrap().iter().all(|&p| p == 0.0));
 }

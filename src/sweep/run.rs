@@ -191,9 +191,8 @@ impl Schedule {
 /// not locked (the loop does not allocate; the process goes on to the analysis after it).
 pub fn realtime_setup() -> RtSetup {
     RtSetup {
-        fifo_priority: Some(80),
         lock_memory: false,
-        cpu: None,
+        ..RtSetup::realtime(80)
     }
 }
 

@@ -18,7 +18,8 @@
 //!   sweeps (started before the first request, stopped after the last `ended` event);
 //! * the host's stalls in the same window: the share of the bare loop's wake-ups more than
 //!   half a period late (an overrun for the cycle, and its feedback likely lost);
-//! * how each sweep ended (late wake-ups, overruns, lost TPDOs). A measurement in which a
+//! * how each sweep ended (late wake-ups, overruns, lost TPDOs; the axes' stated budget
+//!   `limits.max_lost_tpdos` is [`LOST_BUDGET_SHARE`] of the cycles). A measurement in which a
 //!   sweep stopped (the feedback-loss supervisor on a host that stalls) is repeated up to
 //!   2 times (`--quick`: once); the table shows the last attempt, the notes every earlier
 //!   one.

@@ -22,6 +22,8 @@ pub struct CanAxis<'a> {
     /// The bus's `bitrate` [bit/s] (1 Mbit/s by default; above that a udp bus stands for
     /// a faster transport).
     pub bitrate: u32,
+    /// `limits.max_lost_tpdos` (`None`: not written, the daemon's default budget).
+    pub max_lost_tpdos: Option<u64>,
 }
 
 impl<'a> CanAxis<'a> {
@@ -34,6 +36,7 @@ impl<'a> CanAxis<'a> {
             clock: "simulated",
             cycle_hz: 1000.0,
             bitrate: 1_000_000,
+            max_lost_tpdos: None,
         }
     }
 }
@@ -60,7 +63,10 @@ pub fn canopen_config(dir: &Path, token: &Path, axes: &[CanAxis], extra: &str) -
         text.push_str(&format!(
             "[[axis]]\nname = \"{name}\"\nbus = \"bus-{name}\"\nnode = 5\ncycle_hz = {hz}\n\
              clock = \"{clock}\"\nlimits = {{ peak_torque_nm = 1.0, max_speed_rad_s = 300.0, \
-             position_window_rad = {w}, max_sweep_s = 120 }}\n",
+             position_window_rad = {w}, max_sweep_s = 120{lost} }}\n",
+            lost = a
+                .max_lost_tpdos
+                .map_or(String::new(), |n| format!(", max_lost_tpdos = {n}")),
             name = a.name,
             w = a.position_window_rad,
             clock = a.clock,

@@ -31,13 +31,22 @@ impl Drop for Rig {
 }
 
 fn configured(name: &str, opts: SimOptions) -> (Drive<InprocBus, Configured>, Rig) {
+    configured_with(name, opts, MasterConfig::for_node(NODE))
+}
+
+/// A drive brought up with `cfg` (its SDO and boot timeouts shortened).
+fn configured_with(
+    name: &str,
+    opts: SimOptions,
+    cfg: MasterConfig,
+) -> (Drive<InprocBus, Configured>, Rig) {
     let bus = InprocBus::new(name);
     let stop = Arc::new(AtomicBool::new(false));
     let sim = sim_drive(bus.handle(), NODE, 0.001, opts, stop.clone());
     let cfg = MasterConfig {
         sdo_timeout: Duration::from_millis(300),
         boot_timeout: Duration::from_secs(1),
-        ..MasterConfig::for_node(NODE)
+        ..cfg
     };
     let d = bring_up(bus, cfg, &ProfileSet::builtin()).expect("bring-up");
     (
@@ -155,24 +164,32 @@ fn missing_tpdo_is_counted_lost_and_a_late_one_late() {
     );
 }
 
-#[test]
-fn too_many_missing_cycles_fail() {
+/// Runs cycles with TPDO2 dropped from SYNC 5 on; returns the error and the number of
+/// cycles that passed before it.
+fn cycles_until_lost(name: &str, cfg: MasterConfig) -> (MasterError, u32) {
     let opts = SimOptions {
-        drop_tpdo2: (5u64..100).collect(),
+        drop_tpdo2: (5u64..400).collect(),
         ..SimOptions::default()
     };
-    let (mut d, _rig) = enabled("cyc-lost", opts);
-    let mut err = None;
-    for _ in 0..20 {
-        match d.cycle(0.0, Instant::now() + Duration::from_millis(5)) {
-            Ok(_) => {}
-            Err(e) => {
-                err = Some(e);
-                break;
-            }
+    let (d, _rig) = configured_with(name, opts, cfg);
+    let mut d = d.enable().expect("enable");
+    for ok in 0..300u32 {
+        if let Err(e) = d.cycle(0.0, Instant::now() + Duration::from_millis(5)) {
+            return (e, ok);
         }
     }
-    let e = err.expect("an error after max_missed_cycles");
+    panic!("no error after 300 cycles without TPDO2");
+}
+
+#[test]
+fn too_many_missing_cycles_fail() {
+    // the count alone (no time floor): 10 cycles
+    let cfg = MasterConfig {
+        max_missed_time: Duration::ZERO,
+        ..MasterConfig::for_node(NODE)
+    };
+    assert_eq!(cfg.missed_cycles_limit(), 10);
+    let (e, ok) = cycles_until_lost("cyc-lost", cfg);
     assert!(
         matches!(
             e,
@@ -183,6 +200,53 @@ fn too_many_missing_cycles_fail() {
         ),
         "{e}"
     );
+    assert_eq!(
+        ok, 10,
+        "one complete cycle, nine incomplete pass, the tenth fails"
+    );
+}
+
+#[test]
+fn the_missed_cycles_limit_is_at_least_max_missed_time() {
+    // default: 10 cycles and at least 50 ms of them; at 1 ms: 50 cycles
+    let cfg = MasterConfig::for_node(NODE);
+    assert_eq!(cfg.missed_cycles_limit(), 50);
+    let (e, ok) = cycles_until_lost("cyc-lost-time", cfg);
+    assert!(
+        matches!(
+            e,
+            MasterError::TpdoLost {
+                node: NODE,
+                consecutive: 50
+            }
+        ),
+        "{e}"
+    );
+    assert_eq!(
+        ok, 50,
+        "one complete cycle, 49 incomplete pass, the 50th fails"
+    );
+    // 4 kHz: 200 cycles (not 2.5 ms, shorter than one stall of a non-real-time host)
+    let fast = MasterConfig {
+        cycle_period: Duration::from_micros(250),
+        ..cfg
+    };
+    assert_eq!(fast.missed_cycles_limit(), 200);
+    // slow cycles: the count governs (10 x 20 ms)
+    let slow = MasterConfig {
+        cycle_period: Duration::from_millis(20),
+        ..cfg
+    };
+    assert_eq!(slow.missed_cycles_limit(), 10);
+    // a time limit the drive's heartbeat consumer would beat is refused
+    let late = MasterConfig {
+        max_missed_time: cfg.heartbeat_consumer_time,
+        ..cfg
+    };
+    let msg = late
+        .validate()
+        .expect_err("max_missed_time >= consumer time");
+    assert!(msg.contains("max_missed_time"), "{msg}");
 }
 
 #[test]

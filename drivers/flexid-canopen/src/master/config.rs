@@ -28,8 +28,20 @@ pub struct MasterConfig {
     pub state_timeout: Duration,
     /// Time 0x6061 may take to show the mode (profile quirk `mode-display-lags`).
     pub mode_timeout: Duration,
-    /// Consecutive cycles without feedback before the cycle fails.
+    /// Consecutive cycles without feedback before the cycle fails: the least count; the
+    /// limit applied is [`MasterConfig::missed_cycles_limit`] (this many cycles and at least
+    /// [`MasterConfig::max_missed_time`] worth of them).
     pub max_missed_cycles: u32,
+    /// The shortest run of cycles without feedback that fails the cycle, as a time (default
+    /// 50 ms; below `heartbeat_consumer_time`, checked by [`MasterConfig::validate`]).
+    ///
+    /// Why a time and not only a count: 10 cycles are 10 ms at 1 kHz but 2.5 ms at 4 kHz,
+    /// shorter than one scheduling stall of a host without a real-time kernel (a
+    /// `CONFIG_PREEMPT_NONE` VM holds even a `SCHED_FIFO` thread off its CPU for up to
+    /// ~15 ms), so a fast cycle failed on every such stall. A drive that has really gone
+    /// silent is still caught within 50 ms, well before its own heartbeat consumer (300 ms
+    /// by default) would stop it; the sweep's lost-feedback budget counts every loss.
+    pub max_missed_time: Duration,
     /// Bus bitrate, bits/s (for the bus-load check).
     pub bitrate: u32,
     /// Largest admissible bus load (fraction; CANopen practice 0.7).
@@ -52,6 +64,7 @@ impl Default for MasterConfig {
             state_timeout: Duration::from_secs(2),
             mode_timeout: Duration::from_millis(100),
             max_missed_cycles: 10,
+            max_missed_time: Duration::from_millis(50),
             bitrate: 1_000_000,
             max_bus_load: 0.7,
             clock: Instant::now,
@@ -66,6 +79,15 @@ impl MasterConfig {
             node,
             ..Self::default()
         }
+    }
+
+    /// Consecutive cycles without feedback that fail the cycle: `max_missed_cycles`, or
+    /// more when those are shorter than `max_missed_time` at `cycle_period`.
+    pub fn missed_cycles_limit(&self) -> u32 {
+        let period_ns = self.cycle_period.as_nanos().max(1);
+        let by_time = self.max_missed_time.as_nanos().div_ceil(period_ns);
+        self.max_missed_cycles
+            .max(by_time.min(u32::MAX as u128) as u32)
     }
 
     /// Checks ranges; the message says which field is wrong.
@@ -92,6 +114,13 @@ impl MasterConfig {
             return Err(format!(
                 "heartbeat_period {:?} must be positive and below heartbeat_consumer_time {:?}",
                 self.heartbeat_period, self.heartbeat_consumer_time
+            ));
+        }
+        if self.max_missed_cycles == 0 || self.max_missed_time >= self.heartbeat_consumer_time {
+            return Err(format!(
+                "max_missed_cycles must be positive and max_missed_time {:?} below \
+                 heartbeat_consumer_time {:?}",
+                self.max_missed_time, self.heartbeat_consumer_time
             ));
         }
         if self.bitrate == 0 || !(self.max_bus_load > 0.0 && self.max_bus_load <= 1.0) {

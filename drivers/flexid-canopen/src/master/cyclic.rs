@@ -91,7 +91,7 @@ impl<B: CanBus> Link<B> {
         }
         let (complete, consecutive) = self.exchange.end();
         // In walks the state timeout bounds the time; in the cycle, missing feedback.
-        if mode == Mode::Strict && consecutive >= self.cfg.max_missed_cycles {
+        if mode == Mode::Strict && consecutive >= self.cfg.missed_cycles_limit() {
             return Err(MasterError::TpdoLost { node, consecutive });
         }
         Ok((sync_time, complete))
@@ -234,7 +234,7 @@ impl<B: CanBus> Drive<B, Enabled> {
     /// One cycle: RPDO1 (Enable operation, `torque_nm` converted to ‰ of rated torque,
     /// clamped), SYNC, then this cycle's TPDO1/TPDO2 until `deadline`; the master
     /// heartbeat when due. A missing TPDO gives `fresh: false` (previous values) and is
-    /// counted; `config.max_missed_cycles` in a row is an error. EMCYs from the drive,
+    /// counted; `config.missed_cycles_limit()` in a row is an error. EMCYs from the drive,
     /// a Fault state, leaving Operation enabled, an NMT state change and bus errors are
     /// errors; other and malformed frames are counted and ignored. No allocation.
     pub fn cycle(&mut self, torque_nm: f64, deadline: Instant) -> Result<Feedback, MasterError> {

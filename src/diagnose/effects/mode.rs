@@ -23,12 +23,25 @@ pub const JOINT_STARTS: usize = 2;
 /// LM iterations of the joint refinement.
 pub const JOINT_ITERS: usize = 60;
 
+/// Frequencies closer than this ratio to an earlier one give no starts of their own (the
+/// bands of the levels overlap; each start costs a prefit).
+pub const START_FREQ_RATIO: f64 = 1.2;
+
 /// Starts: the nominal chain with a body of `r` times the last inertia appended, tuned to
-/// each frequency in `freqs_hz`, plus `extra` chains.
+/// each frequency in `freqs_hz` (those within [`START_FREQ_RATIO`] of an earlier one
+/// skipped), plus `extra` chains.
 pub fn starts(nominal: &Chain, freqs_hz: &[f64], extra: &[Chain]) -> Vec<Chain> {
     let jl = *nominal.inertia_kgm2.last().unwrap();
     let mut out: Vec<Chain> = extra.to_vec();
+    let mut taken: Vec<f64> = Vec::new();
     for &f in freqs_hz {
+        if taken
+            .iter()
+            .any(|&g| (f / g).ln().abs() < START_FREQ_RATIO.ln())
+        {
+            continue;
+        }
+        taken.push(f);
         for r in [0.1, 0.3, 1.0] {
             let je = r * jl;
             let c = je * (2.0 * std::f64::consts::PI * f).powi(2);

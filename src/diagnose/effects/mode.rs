@@ -2,18 +2,46 @@
 //! chain of one more body appended to the nominal one, its frequency started at the
 //! localised bands (and at the pipeline's own (n+1)-mass identification when it has one),
 //! refined jointly on all levels.
+//!
+//! The starts are ranked after a short fit of the appended body alone (the nominal chain
+//! held), not by their cost as given: the cost of an untuned start says little about the
+//! basin it lies in. On seed 1614 of the withheld-effect benchmark the two starts of lowest
+//! cost both led the joint fit to a pair at 2.5/3.0 Hz (chi² 1.25e7) while the true one is
+//! at 5.8/7.3 Hz (chi² 487, reached from 7 of the 36 starts); after
+//! [`PREFIT_ITERS`] iterations of the body alone the starts near the true pair lead.
 
-use super::{finish_linear, fit_best_start, EffectFit, Lin, Param};
+use super::{build, finish_linear, fit_linear, residuals, theta, EffectFit, Lin, Param};
+use crate::diagnose::lm::{minimise, LmResult};
 use crate::diagnose::lti::LinExt;
 use crate::diagnose::Data;
 use crate::model::Chain;
 
+/// LM iterations of the appended body alone (inertia, spring, damper) per start.
+pub const PREFIT_ITERS: usize = 5;
+/// Prefitted starts refined jointly with the chain (the best of them is kept).
+pub const JOINT_STARTS: usize = 2;
+/// LM iterations of the joint refinement.
+pub const JOINT_ITERS: usize = 60;
+
+/// Frequencies closer than this ratio to an earlier one give no starts of their own (the
+/// bands of the levels overlap; each start costs a prefit).
+pub const START_FREQ_RATIO: f64 = 1.2;
+
 /// Starts: the nominal chain with a body of `r` times the last inertia appended, tuned to
-/// each frequency in `freqs_hz`, plus `extra` chains.
+/// each frequency in `freqs_hz` (those within [`START_FREQ_RATIO`] of an earlier one
+/// skipped), plus `extra` chains.
 pub fn starts(nominal: &Chain, freqs_hz: &[f64], extra: &[Chain]) -> Vec<Chain> {
     let jl = *nominal.inertia_kgm2.last().unwrap();
     let mut out: Vec<Chain> = extra.to_vec();
+    let mut taken: Vec<f64> = Vec::new();
     for &f in freqs_hz {
+        if taken
+            .iter()
+            .any(|&g| (f / g).ln().abs() < START_FREQ_RATIO.ln())
+        {
+            continue;
+        }
+        taken.push(f);
         for r in [0.1, 0.3, 1.0] {
             let je = r * jl;
             let c = je * (2.0 * std::f64::consts::PI * f).powi(2);
@@ -27,9 +55,10 @@ pub fn starts(nominal: &Chain, freqs_hz: &[f64], extra: &[Chain]) -> Vec<Chain> 
     out
 }
 
+/// The extra-body fit from `starts` (chains of one more body than the nominal one).
 pub fn fit(data: &Data, starts: &[Chain]) -> Option<EffectFit> {
     let s: Vec<LinExt> = starts.iter().map(|c| LinExt::nominal(c.clone())).collect();
-    let (m, _r) = fit_best_start(data, Lin::Mode, &s, 60, 2)?;
+    let (m, _r) = fit_prefitted(data, &s)?;
     let ch = &m.chain;
     let n = ch.masses();
     let mut p = vec![
@@ -62,4 +91,44 @@ pub fn fit(data: &Data, starts: &[Chain]) -> Option<EffectFit> {
         });
     }
     Some(finish_linear(data, "unmodelled_mode", m, p, 3))
+}
+
+/// Each start's appended body prefitted ([`prefit_body`]); the [`JOINT_STARTS`] best of
+/// them refined jointly with the chain; the best joint fit.
+fn fit_prefitted(data: &Data, starts: &[LinExt]) -> Option<(LinExt, LmResult)> {
+    let mut scored: Vec<(f64, LinExt)> = starts
+        .iter()
+        .filter_map(|st| prefit_body(data, st, PREFIT_ITERS))
+        .filter(|(c, _)| c.is_finite())
+        .collect();
+    scored.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let mut best: Option<(LinExt, LmResult)> = None;
+    for (_, st) in scored.iter().take(JOINT_STARTS) {
+        if let Some((m, r)) = fit_linear(data, &data.targets, Lin::Mode, st, JOINT_ITERS) {
+            if best.as_ref().is_none_or(|b| r.cost < b.1.cost) {
+                best = Some((m, r));
+            }
+        }
+    }
+    best
+}
+
+/// The appended body's inertia, spring and damper fitted with the rest of the chain held
+/// (`iters` LM iterations): its cost on the decimated targets and the model.
+fn prefit_body(data: &Data, start: &LinExt, iters: usize) -> Option<(f64, LinExt)> {
+    let n = start.chain.masses();
+    let t0 = theta(start, Lin::Mode);
+    let idx = [n - 1, 2 * n - 2, 3 * n - 3];
+    let e0: Vec<f64> = idx.iter().map(|&i| t0[i]).collect();
+    let full = |e: &[f64]| {
+        let mut t = t0.clone();
+        for (&i, &v) in idx.iter().zip(e) {
+            t[i] = v;
+        }
+        t
+    };
+    let r = minimise(&e0, iters, |e| {
+        residuals(&build(&full(e), n, Lin::Mode)?, data, &data.targets)
+    })?;
+    Some((r.cost, build(&full(&r.x), n, Lin::Mode)?))
 }

@@ -17,7 +17,7 @@ use crate::diagnose::Data;
 use crate::model::Chain;
 
 /// LM iterations of the appended body alone (inertia, spring, damper) per start.
-pub const PREFIT_ITERS: usize = 5;
+pub const PREFIT_ITERS: usize = 3;
 /// Prefitted starts refined jointly with the chain (the best of them is kept).
 pub const JOINT_STARTS: usize = 2;
 /// LM iterations of the joint refinement.

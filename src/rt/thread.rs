@@ -200,16 +200,16 @@ mod tests {
         assert!(back.stats.is_none());
     }
 
-    /// An injected slow body: deadlines are skipped and counted, never caught up.
+    /// An injected slow body: deadlines are skipped and counted, never caught up. (The
+    /// host may stall the thread too, PREEMPT_NONE here: the checks hold whatever else
+    /// it skips.)
     #[test]
     fn slow_body_overruns_are_counted_and_skipped() {
         let period = Duration::from_millis(2);
+        let served = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
+        let log = served.clone();
         let h = spawn_cycle_thread("t-slow", RtSetup::none(), period, move |t| {
-            assert!(
-                t.lateness_ns < 2_000_000,
-                "burst: lateness {}",
-                t.lateness_ns
-            );
+            log.lock().unwrap().push(t.index);
             if t.index == 5 {
                 std::thread::sleep(Duration::from_millis(7)); // 3.5 periods
             }
@@ -221,11 +221,18 @@ mod tests {
         })
         .unwrap();
         let r = h.join().unwrap();
+        let served = served.lock().unwrap().clone();
         assert!(r.overruns >= 1);
-        // 7 ms from deadline 5: deadlines 6 and 7 skipped (2.5 periods past), 8 served
+        // 7 ms from deadline 5: deadlines 6 and 7 skipped (2.5 periods past), the next
+        // served is 8 or later: never a burst of the missed ones
+        let after5 = served[served.iter().position(|&i| i == 5).unwrap() + 1];
+        assert!(after5 >= 8, "served after 5: {after5} ({served:?})");
+        assert!(served.windows(2).all(|w| w[1] > w[0]), "{served:?}");
         assert!(r.missed_deadlines >= 2, "{}", r.missed_deadlines);
-        // every grid slot up to 30 is either a cycle or a skipped deadline
-        assert_eq!(r.cycles + r.missed_deadlines, 31);
+        // every grid slot up to the last served is either a cycle or a skipped deadline
+        let last = *served.last().unwrap();
+        assert_eq!(r.cycles, served.len() as u64);
+        assert_eq!(r.cycles + r.missed_deadlines, last + 1, "{served:?}");
         assert!(r.late_wakeups >= 1);
         // the stall is visible in the lateness: >= 2 periods on the deadline waited for
         assert!(r.lateness.max_ns >= 4_000_000, "{}", r.lateness.max_ns);

@@ -48,6 +48,23 @@ if command -v npm >/dev/null 2>&1; then
     (cd tests/browser && npm ci --no-audit --no-fund --prefer-offline --loglevel=error)
 fi
 
+step "reserve the tests' UDP bus ports (43100-43400) from the kernel's ephemeral ports"
+# The tests' user-space buses bind fixed multicast ports inside Linux's ephemeral range
+# (43113 is python-can's default): a send socket of another test that happens to get one
+# of them as its ephemeral port makes the bind fail (seen once: "bind: Address already in
+# use" on 43322). ip_local_reserved_ports takes them out of the ephemeral allocation.
+reserved=/proc/sys/net/ipv4/ip_local_reserved_ports
+if [ -w "$reserved" ]; then
+    cur=$(cat "$reserved")
+    case ",$cur," in
+    *,43100-43400,*) ;;
+    *) echo "${cur:+$cur,}43100-43400" >"$reserved" ;;
+    esac
+    echo "reserved ports: $(cat "$reserved")"
+else
+    echo "cannot write $reserved (not root): a rare port clash between tests stays possible"
+fi
+
 step "build (release, once for every stage)"
 cargo build --release --workspace --all-targets
 

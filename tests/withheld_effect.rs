@@ -6,9 +6,7 @@
 
 mod common;
 
-use common::withheld::{generate, CLASSES};
-use flexid::diagnose::{diagnose, DiagnoseOptions};
-use flexid::recording::read_recording;
+use common::withheld::{diagnose_case, generate, CLASSES};
 
 #[test]
 fn diagnose_withheld_effect_two_cases_per_class() {
@@ -18,19 +16,7 @@ fn diagnose_withheld_effect_two_cases_per_class() {
         for k in 0..2u64 {
             let seed = 1000 + 100 * ci as u64 + k;
             let case = generate(class, seed, &dir.path().join(format!("{class}-{k}")));
-            let recs: Vec<_> = case
-                .recordings
-                .iter()
-                .map(|p| read_recording(p).unwrap())
-                .collect();
-            let d = diagnose(
-                &recs,
-                &DiagnoseOptions {
-                    masses: 3,
-                    ..DiagnoseOptions::default()
-                },
-            )
-            .unwrap();
+            let d = diagnose_case(&case);
             let truth: serde_json::Value =
                 serde_json::from_str(&std::fs::read_to_string(&case.truth_path).unwrap()).unwrap();
             let ratio = d.gap.after_rms_db / d.gap.before_rms_db;

@@ -6,28 +6,14 @@
 
 mod common;
 
-use common::withheld::generate;
-use flexid::diagnose::{diagnose, DiagnoseOptions};
+use common::withheld::{diagnose_case, generate};
 use flexid::model::Chain;
-use flexid::recording::read_recording;
 
 #[test]
 fn unmodelled_mode_seed_1614_finds_the_true_pair() {
     let dir = tempfile::tempdir().unwrap();
     let case = generate("unmodelled_mode", 1614, dir.path());
-    let recs: Vec<_> = case
-        .recordings
-        .iter()
-        .map(|p| read_recording(p).unwrap())
-        .collect();
-    let d = diagnose(
-        &recs,
-        &DiagnoseOptions {
-            masses: 3,
-            ..DiagnoseOptions::default()
-        },
-    )
-    .unwrap();
+    let d = diagnose_case(&case);
     assert_eq!(d.verdict, "unmodelled_mode");
     let ratio = d.gap.after_rms_db / d.gap.before_rms_db;
     assert!(

@@ -210,3 +210,21 @@ pub fn generate(class: &str, seed: u64, dir: &Path) -> Case {
         truth_path,
     }
 }
+
+/// Reads the case's recordings back and runs the diagnosis on them alone, as a 3-mass
+/// axis (the truth file is not read).
+pub fn diagnose_case(case: &Case) -> flexid::diagnose::Diagnosis {
+    let recs: Vec<Recording> = case
+        .recordings
+        .iter()
+        .map(|p| flexid::recording::read_recording(p).unwrap())
+        .collect();
+    flexid::diagnose::diagnose(
+        &recs,
+        &flexid::diagnose::DiagnoseOptions {
+            masses: 3,
+            ..flexid::diagnose::DiagnoseOptions::default()
+        },
+    )
+    .unwrap()
+}

@@ -13,6 +13,13 @@ pub struct LmResult {
     pub cov: Vec<f64>,
 }
 
+/// A step that lowers the cost by less than this fraction of it ends the fit. The fits'
+/// costs are chi² of 1e3-1e6 over the lines, so what is left is at most ~1, below every
+/// decision the ranking takes on them (an information-criterion penalty of 2 and more per
+/// parameter); at 1e-9 the last iterations bought nothing visible and cost ~15 % of a
+/// diagnosis (`benches/withheld_effect.rs`, README "Timing").
+pub const MIN_REL_IMPROVEMENT: f64 = 1e-6;
+
 fn cost_of(r: &[f64]) -> f64 {
     r.iter().map(|v| v * v).sum()
 }
@@ -73,7 +80,7 @@ pub fn minimise(
                     res = rn;
                     cost = cn;
                     lambda = (lambda * 0.3).max(1e-9);
-                    improved = rel > 1e-9;
+                    improved = rel > MIN_REL_IMPROVEMENT;
                     break;
                 }
             }

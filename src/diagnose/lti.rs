@@ -195,16 +195,59 @@ impl Discrete {
         self.frf_with(f_hz, kind, &mut Vec::new())
     }
 
-    /// [`Discrete::frf`] in the caller's scratch space (resized once, then reused).
+    /// [`Discrete::frf`] in the caller's scratch space (resized once, then reused). The
+    /// state sizes of the fits (a 2- to 4-mass chain, with a current loop of order 1 or 2)
+    /// are solved on the stack with the size known at compile time ([`Discrete::solve_fixed`],
+    /// the same operations in the same order as [`Discrete::solve_rows`], so the same result
+    /// to the bit); other sizes in `scratch`.
     fn frf_with(&self, f_hz: f64, kind: FrfKind, scratch: &mut Vec<Complex64>) -> Complex64 {
+        let z = Complex64::from_polar(1.0, 2.0 * std::f64::consts::PI * f_hz * self.ts);
+        let zi = 1.0 / z;
+        let (pos, vel) = self
+            .solve_sized(z, zi)
+            .unwrap_or_else(|| self.solve_rows(z, zi, scratch));
+        self.output(pos, vel, zi, kind)
+    }
+
+    /// [`Discrete::solve_fixed`] for the state sizes it is compiled for; `None` otherwise.
+    fn solve_sized(&self, z: Complex64, zi: Complex64) -> Option<(Complex64, Complex64)> {
+        Some(match self.qg1.len() {
+            4 => self.solve_fixed::<4>(z, zi),
+            5 => self.solve_fixed::<5>(z, zi),
+            6 => self.solve_fixed::<6>(z, zi),
+            7 => self.solve_fixed::<7>(z, zi),
+            8 => self.solve_fixed::<8>(z, zi),
+            9 => self.solve_fixed::<9>(z, zi),
+            10 => self.solve_fixed::<10>(z, zi),
+            _ => return None,
+        })
+    }
+
+    /// The FRF kind from the motor position and velocity responses (whole-sample delay
+    /// applied here).
+    fn output(&self, pos: Complex64, vel: Complex64, zi: Complex64, kind: FrfKind) -> Complex64 {
+        let d = zi.powi(self.whole);
+        match kind {
+            FrfKind::Position => pos * d,
+            FrfKind::Velocity => vel * d,
+            _ => pos * d * (1.0 - zi) / self.ts,
+        }
+    }
+
+    /// `(z I - H) y = Qᵀ(g1 + g0/z)` for any state size, in `scratch`; the motor position
+    /// and velocity rows of `Q y`. The reference of [`Discrete::solve_fixed`].
+    fn solve_rows(
+        &self,
+        z: Complex64,
+        zi: Complex64,
+        scratch: &mut Vec<Complex64>,
+    ) -> (Complex64, Complex64) {
         let ns = self.qg1.len();
         let w = ns + 1;
         if scratch.len() < ns * w {
             scratch.resize(ns * w, Complex64::new(0.0, 0.0));
         }
         let m = &mut scratch[..ns * w];
-        let z = Complex64::from_polar(1.0, 2.0 * std::f64::consts::PI * f_hz * self.ts);
-        let zi = 1.0 / z;
         // [z I - H | Qᵀ(g1 + g0/z)], upper Hessenberg
         for r in 0..ns {
             for c in r.saturating_sub(1)..ns {
@@ -230,7 +273,7 @@ impl Discrete {
                 m[q + c] -= f * v;
             }
         }
-        // back substitution into the last column (y), then the output row of Q
+        // back substitution into the last column (y), then the output rows of Q
         for r in (0..ns).rev() {
             let mut s = m[r * w + ns];
             for c in r + 1..ns {
@@ -241,12 +284,57 @@ impl Discrete {
         let out = |row: &[f64]| -> Complex64 {
             row.iter().enumerate().map(|(c, q)| m[c * w + ns] * q).sum()
         };
-        let d = zi.powi(self.whole);
-        match kind {
-            FrfKind::Position => out(&self.q_pos) * d,
-            FrfKind::Velocity => out(&self.q_vel) * d,
-            _ => out(&self.q_pos) * d * (1.0 - zi) / self.ts,
+        (out(&self.q_pos), out(&self.q_vel))
+    }
+
+    /// [`Discrete::solve_rows`] with `N` states known at compile time: the matrix and the
+    /// right-hand side on the stack, loops unrolled. Rows are swapped whole (the entries
+    /// left of the pivot column are never read again), every used entry sees the same
+    /// operations in the same order.
+    #[inline(always)]
+    fn solve_fixed<const N: usize>(&self, z: Complex64, zi: Complex64) -> (Complex64, Complex64) {
+        let zero = Complex64::new(0.0, 0.0);
+        let h: &[f64] = &self.h[..N * N];
+        let (qg1, qg0): (&[f64; N], &[f64; N]) = (
+            self.qg1[..].try_into().expect("state size"),
+            self.qg0[..].try_into().expect("state size"),
+        );
+        let mut a = [[zero; N]; N];
+        let mut y = [zero; N];
+        for r in 0..N {
+            for c in r.saturating_sub(1)..N {
+                a[r][c] = Complex64::new(-h[r * N + c], 0.0);
+            }
+            a[r][r] += z;
+            y[r] = qg1[r] + qg0[r] * zi;
         }
+        for col in 0..N - 1 {
+            if a[col + 1][col].norm_sqr() > a[col][col].norm_sqr() {
+                a.swap(col, col + 1);
+                y.swap(col, col + 1);
+            }
+            let f = a[col + 1][col] / a[col][col];
+            if f.norm_sqr() == 0.0 || !f.is_finite() {
+                continue;
+            }
+            let (top, bottom) = a.split_at_mut(col + 1);
+            let (p, q) = (&top[col], &mut bottom[0]);
+            for c in col + 1..N {
+                q[c] -= f * p[c];
+            }
+            let v = y[col];
+            y[col + 1] -= f * v;
+        }
+        for r in (0..N).rev() {
+            let mut s = y[r];
+            for c in r + 1..N {
+                s -= a[r][c] * y[c];
+            }
+            y[r] = s / a[r][r];
+        }
+        let out =
+            |row: &[f64]| -> Complex64 { row.iter().enumerate().map(|(c, q)| y[c] * q).sum() };
+        (out(&self.q_pos), out(&self.q_vel))
     }
 
     pub fn frf_lines(&self, f: &[f64], kind: FrfKind) -> Vec<Complex64> {
@@ -338,6 +426,52 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// The fixed-size solve gives the any-size solve's result to the bit, for every state
+    /// size it is used for (2-4 masses, no loop, a loop of order 1 and 2).
+    #[test]
+    fn fixed_size_solve_equals_the_any_size_solve_bit_for_bit() {
+        let fs = 2000.0;
+        let chains = [
+            Chain::new(vec![3.6e-3, 5.1e-3], vec![2.9e4], vec![0.47]).unwrap(),
+            chain3(),
+            Chain::new(
+                vec![3.6e-3, 5.1e-3, 17.2e-3, 9.0e-3],
+                vec![2.9e4, 171.0, 40.0],
+                vec![0.47, 0.018, 0.01],
+            )
+            .unwrap(),
+        ];
+        let mut sizes = Vec::new();
+        for ch in chains {
+            for order in [0u8, 1, 2] {
+                let mut m = LinExt::nominal(ch.clone());
+                m.delay_s = 0.3 / fs;
+                if order > 0 {
+                    m.current_loop = Some(Loop {
+                        order,
+                        bandwidth_hz: 800.0,
+                        zeta: 0.6,
+                    });
+                }
+                let d = Discrete::new(&m, fs, 1);
+                sizes.push(d.qg1.len());
+                let mut scratch = Vec::new();
+                for i in 0..300 {
+                    let f = 0.2 * (999.0f64 / 0.2).powf(i as f64 / 299.0);
+                    let z = Complex64::from_polar(1.0, 2.0 * std::f64::consts::PI * f / fs);
+                    let zi = 1.0 / z;
+                    let fixed = d
+                        .solve_sized(z, zi)
+                        .unwrap_or_else(|| panic!("size {}", d.qg1.len()));
+                    let rows = d.solve_rows(z, zi, &mut scratch);
+                    assert_eq!(fixed, rows, "{} states, {f} Hz", d.qg1.len());
+                }
+            }
+        }
+        sizes.sort();
+        assert_eq!(sizes, vec![4, 5, 6, 6, 7, 8, 8, 9, 10]);
     }
 
     #[test]

@@ -25,12 +25,14 @@ fn diagnose_withheld_effect_two_cases_per_class() {
                 d.verdict, d.gap.before_rms_db, d.gap.after_rms_db
             );
             // the target: the gap at least halved for every class but `none`.
-            // Backlash reaches it on 12 of the benchmark's 20 cases, not on all (seed 1201
-            // here leaves 0.56: see README, Withheld-effect benchmark); this guards the
-            // simplex fit against a regression (the fit before it left 0.83-0.88).
-            let limit = match *class {
-                "none" => f64::INFINITY,
-                "backlash" => 0.6,
+            // Backlash reaches it on 16 of the benchmark's 20 cases, not on all (seed 1201
+            // here leaves 0.53: see README, Withheld-effect benchmark); this guards the
+            // fit against a regression (the fit before the simplex left 0.83-0.88), and
+            // seed 1200 the polish after the simplex (0.37 without it, 0.23 with it).
+            let limit = match (*class, seed) {
+                ("none", _) => f64::INFINITY,
+                ("backlash", 1200) => 0.3,
+                ("backlash", _) => 0.6,
                 _ => 0.5,
             };
             if d.verdict != truth["effect"].as_str().unwrap() || ratio > limit {

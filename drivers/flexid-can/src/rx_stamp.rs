@@ -14,7 +14,11 @@ use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 const SIOCGSTAMPNS: libc::c_ulong = 0x8907;
 
 /// Turns the kernel's receive stamping on for `fd` (the first stamp request does);
-/// call once when the socket is opened, so that the first frame is stamped too.
+/// call once when the socket is opened, so that the first frame is stamped too. When no
+/// other socket on the host has stamping on, the kernel switches it on through a deferred
+/// work item (`net_enable_timestamp`): frames received in the first moments after this
+/// call carry the time of the stamp request instead, which is the read time, as without
+/// stamps.
 pub(crate) fn enable(fd: RawFd) {
     let _ = kernel_stamp(fd);
 }
@@ -100,6 +104,25 @@ mod tests {
         let tx = UdpSocket::bind("127.0.0.1:0").unwrap();
         let mut buf = [0u8; 8];
         enable(rx.as_raw_fd());
+        // the kernel turns stamping on in a deferred work item when no other socket has it
+        // on (this test alone failed 9 of 30 runs without the wait): wait until a datagram
+        // that waited 2 ms is stamped before its read, at most 2 s
+        let t0 = Instant::now();
+        loop {
+            tx.send_to(b"w", rx.local_addr().unwrap()).unwrap();
+            std::thread::sleep(Duration::from_millis(2));
+            rx.recv_from(&mut buf).unwrap();
+            let read = Instant::now();
+            if read.saturating_duration_since(last_arrival(rx.as_raw_fd()))
+                >= Duration::from_millis(1)
+            {
+                break;
+            }
+            assert!(
+                t0.elapsed() < Duration::from_secs(2),
+                "the kernel never stamped a datagram"
+            );
+        }
         tx.send_to(b"x", rx.local_addr().unwrap()).unwrap();
         let sent = Instant::now();
         std::thread::sleep(Duration::from_millis(20));

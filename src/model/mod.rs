@@ -8,6 +8,7 @@
 //!   differenced position), the footing on which models and measurements are compared.
 
 mod chain;
+pub(crate) mod eigen;
 mod sampled;
 mod state_space;
 pub use chain::{Chain, ModelError};

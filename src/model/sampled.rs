@@ -117,13 +117,10 @@ pub(crate) fn flexible_poles(chain: &Chain) -> Result<Vec<Complex64>, ModelError
         return Ok(Vec::new());
     }
     let ss = StateSpace::of(chain);
-    let mut eig: Vec<Complex64> =
-        ss.a.clone()
-            .schur()
-            .complex_eigenvalues()
-            .iter()
-            .copied()
-            .collect();
+    let mut eig = super::eigen::eigenvalues(&ss.a).ok_or_else(|| ModelError::Modes {
+        detail: "the state matrix's eigenvalues did not converge (parameters many decades apart)"
+            .into(),
+    })?;
     eig.sort_by(|a, b| a.norm().total_cmp(&b.norm()));
     let mut poles: Vec<Complex64> = eig.split_off(2);
     for p in poles.iter_mut() {

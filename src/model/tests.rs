@@ -172,3 +172,25 @@ fn invalid_chains_are_refused_with_context() {
     ));
     assert!(SampledChain::new(&three_mass(), 0.0, 0).is_err());
 }
+
+/// A chain an optimiser's wild step reached in the withheld-effect benchmark (seed 7201):
+/// every value positive and finite, but 400 decades apart. nalgebra's unbounded Schur
+/// iteration never converged on its state matrix (the diagnosis hung); now it is refused
+/// with an error, and a sane chain still gives its modes.
+#[test]
+fn a_chain_of_absurd_scales_is_refused_not_hung() {
+    let wild = Chain::new(
+        vec![6.347e-3, 1.4616e-3, 2.1669e-10, 4.5274e-202],
+        vec![12134.5, 2.0744e99, 5.932e200],
+        vec![0.19927, 1.4822e-162, 1.0406e-54],
+    )
+    .unwrap();
+    let t = std::time::Instant::now();
+    let r = SampledChain::new(&wild, 4000.0, 0);
+    assert!(
+        matches!(&r, Err(ModelError::Modes { detail }) if detail.contains("did not converge (")),
+        "{r:?}"
+    );
+    assert!(t.elapsed().as_secs_f64() < 5.0, "{:?}", t.elapsed());
+    assert!(SampledChain::new(&three_mass(), 4000.0, 0).is_ok());
+}

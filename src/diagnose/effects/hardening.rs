@@ -24,6 +24,7 @@ pub const SPRING: Spring = Spring {
     damping_follows: false,
     high_level_chain: false,
     range: (1.2, 400.0),
+    valley_starts: &[],
 };
 
 /// Identify a hardening spring on the data, from the nominal chain.

@@ -263,11 +263,10 @@ pub struct Spring {
     /// Multiples of the simplex's `p` from which the polish starts again, the chain moved
     /// along [`VALLEY`]; the polished result of lowest cost is kept.
     pub valley_starts: &'static [f64],
+    /// Cost evaluations of the simplex refinement, per round (the second from the best
+    /// point with half the steps).
+    pub refine_evals: [usize; 2],
 }
-
-/// Cost evaluations of the simplex refinement of a spring nonlinearity, per round (40 + 24
-/// before the valley starts of backlash took part of its time).
-pub const SPRING_REFINE_EVALS: [usize; 2] = [30, 16];
 
 /// How the fit of a backlash case moves along its valley, per unit of `ln` of the gap: the
 /// exponents of the gear's stiffness, damping and the inertias before and after it. Measured
@@ -406,7 +405,7 @@ pub fn fit_spring(
         }
     }
     let (_, k, lin, p) = best?;
-    let (lin, p, _) = refine_spring(data, &lin, k, p, &make);
+    let (lin, p, _) = refine_spring(data, &lin, k, p, spring.refine_evals, &make);
     // further polished starts along the valley (larger gaps): the best by the cost
     let mut best = polish_spring(data, &lin, k, p, &make, POLISH_ITERS);
     for &f in spring.valley_starts {
@@ -438,6 +437,7 @@ fn refine_spring(
     start: &LinExt,
     k: usize,
     p: f64,
+    evals: [usize; 2],
     make: &impl Fn(usize, f64) -> Nl,
 ) -> (LinExt, f64, f64) {
     let ch = &start.chain;
@@ -458,7 +458,7 @@ fn refine_spring(
         l
     };
     let step = [0.05, 0.3, 0.04, 0.04, 0.2];
-    for (round, evals) in SPRING_REFINE_EVALS.iter().enumerate() {
+    for (round, evals) in evals.iter().enumerate() {
         let scale = 0.5f64.powi(round as i32);
         let st: Vec<f64> = step.iter().map(|s| s * scale).collect();
         let r = simplex::minimise(&x, &st, *evals, |x| {

@@ -18,13 +18,15 @@ pub fn stiffening(x_ref_rad: f64, defl_rms_rad: f64) -> f64 {
 
 /// Hardening as the per-level fits see it, started from the low level's chain (the least
 /// stiffened); `x_ref` searched in 1.2-400x the coupling's RMS deflection there (about
-/// 0.3-100x at the high level) when the describing function gives no start.
+/// 0.3-100x at the high level) when the describing function gives no start; no valley
+/// starts, so the simplex keeps the budget backlash gives to them.
 pub const SPRING: Spring = Spring {
     equivalent: stiffening,
     damping_follows: false,
     high_level_chain: false,
     range: (1.2, 400.0),
     valley_starts: &[],
+    refine_evals: [40, 24],
 };
 
 /// Identify a hardening spring on the data, from the nominal chain.

@@ -235,7 +235,6 @@ fn main() {
     }
 }
 
-/// Median and maximum (None when empty).
 /// The systematic RMS gap [dB] of the true chain with the true effect, simulated by the
 /// diagnosis's simulator on the recordings (`None` for the linear effects and `none`).
 fn truth_gap(recs: &[flexid::recording::Recording], truth: &serde_json::Value) -> Option<f64> {
@@ -283,6 +282,7 @@ fn truth_gap(recs: &[flexid::recording::Recording], truth: &serde_json::Value) -
     Some(rms_parts(&data, &model).0)
 }
 
+/// Median and maximum (None when empty).
 fn median_max(v: &[f64]) -> Option<(f64, f64)> {
     let mut s = v.to_vec();
     s.sort_by(f64::total_cmp);

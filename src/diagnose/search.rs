@@ -407,7 +407,7 @@ pub fn fit_spring(
     let (_, k, lin, p) = best?;
     let (lin, p, _) = refine_spring(data, &lin, k, p, spring.refine_evals, &make);
     // further polished starts along the valley (larger gaps): the best by the cost
-    let mut best = polish_spring(data, &lin, k, p, &make, POLISH_ITERS);
+    let mut best = polish_spring(data, &lin, k, p, &make);
     for &f in spring.valley_starts {
         let mut l = lin.clone();
         let ch = &mut l.chain;
@@ -415,7 +415,7 @@ pub fn fit_spring(
         ch.damping_nms_per_rad[k] *= f.powf(VALLEY.damping);
         ch.inertia_kgm2[k] *= f.powf(VALLEY.inertia_before);
         ch.inertia_kgm2[k + 1] *= f.powf(VALLEY.inertia_after);
-        let c = polish_spring(data, &l, k, p * f, &make, POLISH_ITERS);
+        let c = polish_spring(data, &l, k, p * f, &make);
         if c.3 < best.3 {
             best = c;
         }
@@ -512,7 +512,6 @@ fn polish_spring(
     k: usize,
     p: f64,
     make: &impl Fn(usize, f64) -> Nl,
-    iters: usize,
 ) -> (LinExt, f64, f64, f64) {
     use super::effects::{build, model_on, theta};
     let steady = Some(POLISH_STEADY_PERIODS);
@@ -534,7 +533,7 @@ fn polish_spring(
     };
     let mut c0 = cost(&r);
     let mut lambda = 1e-2;
-    for _ in 0..iters {
+    for _ in 0..POLISH_ITERS {
         let Some(lin) = build(&t, n, Lin::None) else {
             break;
         };

@@ -78,6 +78,7 @@ fn main() {
                         .ok()
                         .and_then(|v| v.parse().ok())
                         .unwrap_or(DiagnoseOptions::default().spring_substeps),
+                    cpu_clock: Some(flexid::rt::clock::thread_cpu_ns),
                     ..DiagnoseOptions::default()
                 },
             );
@@ -133,7 +134,7 @@ fn main() {
                     }
                     if std::env::var_os("WITHHELD_VERBOSE").is_some() {
                         println!("{}", truth);
-                        println!("{}", flexid::diagnose::report::render(&d));
+                        println!("{}", flexid::report::diagnosis::render(&d));
                     }
                 }
                 Err(e) => println!("{want:20} seed {seed:5} -> error {e}"),

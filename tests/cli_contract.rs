@@ -38,7 +38,7 @@ fn floats(v: &Value, key: &str) -> Vec<f64> {
 
 fn plant() -> PlantFile {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("plants/scara_shoulder.toml");
-    PlantFile::load(Some(&path)).expect("plant file")
+    flexid::plant_file::load_plant_file(Some(&path)).expect("plant file")
 }
 
 fn assert_close(got: &[f64], want: &[f64], tol: f64, what: &str) {

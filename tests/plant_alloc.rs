@@ -2,7 +2,7 @@
 //! every cycle): counted with a global allocator, on the measuring thread only (the test
 //! harness's own thread may allocate meanwhile: it did once on a loaded CI host).
 
-use flexid::plant::{PlantFile, PlantSim};
+use flexid::plant::PlantSim;
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -43,7 +43,7 @@ static GLOBAL: Counting = Counting;
 fn step_and_sample_do_not_allocate() {
     let path =
         std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("plants/scara_all_effects.toml");
-    let plant = PlantFile::load(Some(&path)).unwrap();
+    let plant = flexid::plant_file::load_plant_file(Some(&path)).unwrap();
     let mut sim = PlantSim::new(&plant.spec(), 4000.0, 10, 1).unwrap();
     let mut acc = 0.0;
     COUNTED.with(|c| c.set(true));

@@ -5,7 +5,6 @@
 mod cli_common;
 use cli_common::{expect_ok, flexid};
 
-use flexid::plant::PlantFile;
 use flexid::recording::read_recording;
 use std::path::{Path, PathBuf};
 use std::process::Output;
@@ -60,7 +59,7 @@ fn linear_plant_file_keeps_the_exact_path() {
     let p = plant("scara_shoulder.toml");
     expect_ok(&simulate(dir.path(), &p, "rec.csv"), "simulate");
     let rec = read_recording(dir.path().join("rec.csv")).unwrap();
-    let file = PlantFile::load(Some(&p)).unwrap();
+    let file = flexid::plant_file::load_plant_file(Some(&p)).unwrap();
     assert!(!file.has_effects());
     let want =
         flexid::sim::simulate_position(&file.chain, &rec.torque_cmd_nm, &file.sim_options(1))

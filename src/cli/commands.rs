@@ -3,13 +3,14 @@
 use super::excite::{read_excitation, write_excitation, Excitation};
 use super::plant::PlantFile;
 use super::{BodeArgs, CliError, DemoArgs, IdentifyArgs, ImportArgs, ModelArgs, SimulateArgs};
-use crate::analysis::{analyze, render_report, to_json, Analysis, AnalysisOptions};
+use crate::analysis::{analyze, to_json, Analysis, AnalysisOptions};
 use crate::excitation::MultisineDesign;
 use crate::identify::fit::{FitBudget, FitOptions};
 use crate::plot::BodePlot;
 use crate::recording::{
     read_recording, write_bytes_atomic, write_recording, MotionSignal, Recording,
 };
+use crate::report::render_report;
 use std::path::Path;
 
 pub(crate) fn options(m: &ModelArgs) -> Result<AnalysisOptions, CliError> {
@@ -211,7 +212,8 @@ fn simulate_to(
 
 /// `flexid simulate`.
 pub fn simulate(a: &SimulateArgs) -> Result<(), CliError> {
-    let plant = PlantFile::load(a.plant.as_deref()).map_err(CliError::input)?;
+    let plant =
+        flexid_files::plant::load_plant_file(a.plant.as_deref()).map_err(CliError::input)?;
     let (torque, sidecar) = read_excitation(&a.excitation)?;
     if let Some(fs) = sidecar.sample_rate_hz {
         if (fs - plant.measurement.sample_rate_hz).abs() > 1e-9 * fs {
@@ -254,7 +256,8 @@ fn demo_excitation(plant: &PlantFile) -> Result<Excitation, CliError> {
 /// `flexid demo` without a bus: the plant simulated in-process (`flexid::sim`: exact ZOH,
 /// encoder quantisation, noise), measured and identified.
 pub(crate) fn demo_simulated(a: &DemoArgs) -> Result<(), CliError> {
-    let plant = PlantFile::load(a.plant.as_deref()).map_err(CliError::input)?;
+    let plant =
+        flexid_files::plant::load_plant_file(a.plant.as_deref()).map_err(CliError::input)?;
     std::fs::create_dir_all(&a.out)
         .map_err(|e| CliError::failed(format!("{}: {e}", a.out.display())))?;
     let fs = plant.measurement.sample_rate_hz;

@@ -176,7 +176,8 @@ pub(super) fn print_truth(an: &Analysis, plant: &PlantFile) {
 
 /// `flexid demo`: over the bus when possible, else the in-process simulation.
 pub fn demo(a: &DemoArgs) -> Result<(), CliError> {
-    let plant = PlantFile::load(a.plant.as_deref()).map_err(CliError::input)?;
+    let plant =
+        flexid_files::plant::load_plant_file(a.plant.as_deref()).map_err(CliError::input)?;
     let ready = sibling_vdrive()
         .and_then(|bin| flexid_can::keep_multicast_on_loopback(GROUP).map(|()| bin));
     let bin = match ready {

@@ -1,8 +1,9 @@
 //! `flexid diagnose REC1.csv [REC2.csv ...] --masses N [--json OUT.json] [--svg gap.svg]`.
 
 use super::CliError;
-use crate::diagnose::{diagnose as run_diagnosis, json::to_json, report::render, DiagnoseOptions};
+use crate::diagnose::{diagnose as run_diagnosis, json::to_json, DiagnoseOptions};
 use crate::recording::{read_recording, write_bytes_atomic};
+use crate::report::diagnosis::render;
 use clap::Args;
 use std::path::PathBuf;
 

@@ -15,6 +15,8 @@ mod excite;
 mod fit_progress;
 pub mod plant;
 pub mod sweep;
+#[cfg(test)]
+mod sweep_tests;
 
 use clap::{Args, Parser, Subcommand};
 use std::path::PathBuf;

@@ -445,7 +445,7 @@ pub fn identify_outcome(
     let t = Instant::now();
     let an = super::commands::run_analysis(&outcome.recording, &opts)?;
     let title = recording_path.display().to_string();
-    print!("{}", crate::analysis::render_report(&an, &title));
+    print!("{}", crate::report::render_report(&an, &title));
     let json = out.join("result.json");
     let svg = out.join("bode.svg");
     super::commands::write_json(&an, &json)?;

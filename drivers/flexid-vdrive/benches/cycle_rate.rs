@@ -9,7 +9,7 @@
 //! `flexid_can::timing`). For each rate tried the drive is brought up and enabled at that
 //! rate (`MasterConfig::cycle_period`, admission limit lifted to 100 % load so the bus
 //! itself shows where it saturates), then cycled on absolute deadlines
-//! ([`flexid::rt::Pacer`], the real-time schedule) with a small sine torque.
+//! ([`flexid_rt::Pacer`], the real-time schedule) with a small sine torque.
 //!
 //! **Without overruns** means: after a warm-up of [`WARMUP_CYCLES`] cycles, a counted run
 //! of a fixed wall time (2 s, 1 s with `--quick`: the same exposure to the host at every
@@ -40,12 +40,12 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use flexid::rt::{Pacer, RtSetup};
 use flexid_can::timing::{BusClock, Paced};
 use flexid_can::InprocBus;
 use flexid_canopen::pdo::{bus_load, default_mapping, max_cycle_rate_hz};
 use flexid_canopen::profile::ObjectMap;
 use flexid_canopen::{bring_up, Counters, MasterConfig, MasterError, ProfileSet};
+use flexid_rt::{Pacer, RtSetup};
 use flexid_vdrive::{linear_drive, ClockMode, DrivePlant, Runner};
 
 const BITRATE: u32 = 1_000_000;
@@ -89,7 +89,7 @@ impl Row {
 fn plant() -> DrivePlant {
     let text = format!(
         "{}\n[drive]\nnode_id = {NODE}\n",
-        flexid::cli::plant::DEFAULT_PLANT
+        flexid_core::plant::DEFAULT_PLANT
     );
     DrivePlant::parse(&text, "default plant").expect("default plant")
 }

@@ -20,7 +20,7 @@
 
 use std::path::Path;
 
-use flexid::cli::plant::{PlantFile, DEFAULT_PLANT};
+use flexid_core::plant::{PlantFile, DEFAULT_PLANT};
 use serde::Deserialize;
 
 use crate::limits::LimitConfig;

@@ -10,7 +10,7 @@
 //! velocity, torque at the SYNC instant, before the new set-point acts), publishes the
 //! sample and sends its TPDOs, then (2) applies the latched set-point and advances the
 //! plant by one cycle (zero-order hold). TPDO `k` is the state before torque `k`, exactly
-//! like `flexid::sim`. The controlword is evaluated as soon as it is received.
+//! like `flexid_core::sim`. The controlword is evaluated as soon as it is received.
 
 use std::time::Duration;
 

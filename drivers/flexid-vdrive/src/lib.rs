@@ -2,7 +2,7 @@
 //! canopen-rs, CiA 402 by hand) in front of a physics model of a compliant axis.
 //!
 //! * [`physics`]: the [`Physics`] trait (sample / step one cycle under ZOH) and
-//!   [`LinearChain`], the exact discretisation of `flexid::model::StateSpace`.
+//!   [`LinearChain`], the exact discretisation of `flexid_core::model::StateSpace`.
 //! * [`od`]: the object dictionary (CiA 301 communication objects, CiA 402 objects).
 //! * [`slave`]: the CiA 301 slave on canopen-rs's `Node`, plus what it lacks.
 //! * [`cia402`]: the CiA 402 device state machine and statusword.
@@ -42,7 +42,7 @@ pub fn linear_drive(
     Ok(VirtualDrive::new(cfg, chain)?)
 }
 
-/// A drive in front of the plant file's physics, boxed: with an `[effects]` section, the main crate's nonlinear `flexid::plant::PlantSim` (noise seeded
+/// A drive in front of the plant file's physics, boxed: with an `[effects]` section, the main crate's nonlinear `flexid_core::plant::PlantSim` (noise seeded
 /// by `seed`); otherwise the exact [`LinearChain`].
 pub fn plant_drive(
     plant: &DrivePlant,

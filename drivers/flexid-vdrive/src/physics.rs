@@ -1,10 +1,10 @@
 //! The physics behind the drive: a trait the drive samples and steps once per cycle, and
 //! its exact linear implementation for an n-mass chain.
 //!
-//! The nonlinear plant of the main crate, `flexid::plant::PlantSim` (every effect of a plant
+//! The nonlinear plant of the main crate, `flexid_core::plant::PlantSim` (every effect of a plant
 //! file's `[effects]` section), is the other implementation.
 
-use flexid::model::{Chain, ModelError, StateSpace};
+use flexid_core::model::{Chain, ModelError, StateSpace};
 
 /// The axis as sampled at one cycle instant (before that cycle's torque acts).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -56,9 +56,9 @@ impl<P: Physics + ?Sized> Physics for Box<P> {
 }
 
 /// The main crate's nonlinear plant (current loop, friction, backlash, ..., noise).
-impl Physics for flexid::plant::PlantSim {
+impl Physics for flexid_core::plant::PlantSim {
     fn sample(&mut self) -> AxisSample {
-        let s = flexid::plant::PlantSim::sample(self);
+        let s = flexid_core::plant::PlantSim::sample(self);
         AxisSample {
             time_s: s.time_s,
             position_rad: s.position_rad,
@@ -68,15 +68,15 @@ impl Physics for flexid::plant::PlantSim {
         }
     }
     fn step(&mut self, torque_nm: f64) {
-        flexid::plant::PlantSim::step(self, torque_nm)
+        flexid_core::plant::PlantSim::step(self, torque_nm)
     }
 }
 
-/// [`flexid::plant::PlantSim`] with what it needs to be rebuilt at another cycle rate (the
+/// [`flexid_core::plant::PlantSim`] with what it needs to be rebuilt at another cycle rate (the
 /// master's 0x1006). A rebuild restarts the plant at its initial state (configuration time).
 pub struct PlantSimPhysics {
-    sim: flexid::plant::PlantSim,
-    spec: flexid::plant::PlantSpec,
+    sim: flexid_core::plant::PlantSim,
+    spec: flexid_core::plant::PlantSpec,
     substeps: u32,
     seed: u64,
     initial_velocity_rad_s: f64,
@@ -86,13 +86,13 @@ impl PlantSimPhysics {
     /// The plant of `spec` at `cycle_hz`, `substeps` per cycle, noise `seed`, every body
     /// starting at `initial_velocity_rad_s`.
     pub fn new(
-        spec: flexid::plant::PlantSpec,
+        spec: flexid_core::plant::PlantSpec,
         cycle_hz: f64,
         substeps: u32,
         seed: u64,
         initial_velocity_rad_s: f64,
     ) -> Result<Self, PhysicsError> {
-        let mut sim = flexid::plant::PlantSim::new(&spec, cycle_hz, substeps, seed)
+        let mut sim = flexid_core::plant::PlantSim::new(&spec, cycle_hz, substeps, seed)
             .map_err(|e| PhysicsError::Plant(e.to_string()))?;
         sim.set_initial_velocity(initial_velocity_rad_s);
         Ok(Self {
@@ -151,8 +151,8 @@ pub enum PhysicsError {
 }
 
 /// An n-mass chain advanced exactly under ZOH, `x[k+1] = Ad x[k] + Bd T[k]`, with the
-/// discretisation of [`flexid::model::StateSpace::discretize`] (the same one
-/// `flexid::sim::simulate_position` uses). State `[theta_1..theta_n, omega_1..omega_n]`.
+/// discretisation of [`flexid_core::model::StateSpace::discretize`] (the same one
+/// `flexid_core::sim::simulate_position` uses). State `[theta_1..theta_n, omega_1..omega_n]`.
 #[derive(Debug, Clone)]
 pub struct LinearChain {
     chain: Chain,
@@ -240,7 +240,7 @@ impl Physics for LinearChain {
 
     fn step(&mut self, torque_nm: f64) {
         let m = 2 * self.n;
-        // Same summation order as flexid::sim::simulate_position (bit-identical results).
+        // Same summation order as flexid_core::sim::simulate_position (bit-identical results).
         for (i, nx) in self.next.iter_mut().enumerate() {
             let mut acc = self.bd[i] * torque_nm;
             for (a, xj) in self.ad[i * m..(i + 1) * m].iter().zip(&self.x) {
@@ -263,11 +263,11 @@ mod tests {
         let chain =
             Chain::new(vec![2e-3, 4e-3, 9e-3], vec![600.0, 9000.0], vec![0.05, 0.3]).unwrap();
         let torque: Vec<f64> = (0..500).map(|k| ((k as f64) * 0.37).sin() * 0.3).collect();
-        let opts = flexid::sim::SimOptions {
+        let opts = flexid_core::sim::SimOptions {
             sample_rate_hz: 2000.0,
             ..Default::default()
         };
-        let want = flexid::sim::simulate_position(&chain, &torque, &opts).unwrap();
+        let want = flexid_core::sim::simulate_position(&chain, &torque, &opts).unwrap();
         let mut p = LinearChain::new(&chain, 2000.0).unwrap();
         for (k, &t) in torque.iter().enumerate() {
             assert_eq!(p.sample().position_rad, want[k], "sample {k}");

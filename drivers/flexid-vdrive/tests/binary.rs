@@ -87,7 +87,7 @@ fn bad_plant_file_exits_2_with_a_message() {
         &path,
         format!(
             "{}\n[drive]\npeak_torque_nm = -1.0\n",
-            flexid::cli::plant::DEFAULT_PLANT
+            flexid_core::plant::DEFAULT_PLANT
         ),
     )
     .unwrap();

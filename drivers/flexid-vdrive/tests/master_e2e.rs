@@ -1,7 +1,7 @@
 //! The CANopen master of `drivers/flexid-canopen` against this drive on an in-process bus:
 //! bring-up (reset, identity, flexid-vdrive profile, PDO mapping, 0x1006 = 1000 us
 //! re-discretising the 2 kHz plant file, heartbeats, CST), enable, and 1000 cycles whose
-//! feedback positions equal `flexid::sim::simulate_position` at 1 kHz within half an encoder
+//! feedback positions equal `flexid_core::sim::simulate_position` at 1 kHz within half an encoder
 //! increment, with no lag.
 
 mod common;
@@ -44,13 +44,13 @@ fn master_brings_up_and_cycles_the_vdrive() {
             eprintln!("{fb:?}");
         }
     }
-    let opts = flexid::sim::SimOptions {
+    let opts = flexid_core::sim::SimOptions {
         sample_rate_hz: 1000.0,
         ..Default::default()
     };
     // the torque set-points are quantised to per-mille by the master
     let tq_q: Vec<f64> = tq.iter().map(|t| (t * 1000.0).round() / 1000.0).collect();
-    let want = flexid::sim::simulate_position(&chain, &tq_q, &opts).unwrap();
+    let want = flexid_core::sim::simulate_position(&chain, &tq_q, &opts).unwrap();
     let q = std::f64::consts::TAU / 1048576.0;
     let mut worst = 0.0f64;
     let mut lag = None;

@@ -1,5 +1,5 @@
 //! The physics through the protocol: the lock-step drive on an `InprocBus`, driven by a
-//! torque sequence through RPDO1 + SYNC, against `flexid::sim::simulate_position`; and
+//! torque sequence through RPDO1 + SYNC, against `flexid_core::sim::simulate_position`; and
 //! the real-time clock.
 
 mod common;
@@ -72,11 +72,11 @@ fn lockstep_tpdo_positions_match_flexid_sim() {
     th.join().unwrap();
 
     let torque_nm: Vec<f64> = permille.iter().map(|&t| f64::from(t) / 1000.0).collect();
-    let opts = flexid::sim::SimOptions {
+    let opts = flexid_core::sim::SimOptions {
         sample_rate_hz: 2000.0,
         ..Default::default()
     };
-    let want = flexid::sim::simulate_position(&chain, &torque_nm, &opts).unwrap();
+    let want = flexid_core::sim::simulate_position(&chain, &torque_nm, &opts).unwrap();
     let inc = f64::from(1u32 << 20) / (2.0 * std::f64::consts::PI);
     let mut worst = 0.0f64;
     for k in 0..n {
@@ -120,11 +120,11 @@ fn realtime_clock_integrates_whole_elapsed_cycles() {
     // samples 3 -> 4; SYNC2 samples 4 -> 5; SYNC3 catches up to 10, samples 10.
     assert_eq!(d.drive.stats().cycles, 11);
     let torque = vec![0.2; 11];
-    let opts = flexid::sim::SimOptions {
+    let opts = flexid_core::sim::SimOptions {
         sample_rate_hz: 2000.0,
         ..Default::default()
     };
-    let want = flexid::sim::simulate_position(&chain, &torque, &opts).unwrap();
+    let want = flexid_core::sim::simulate_position(&chain, &torque, &opts).unwrap();
     let inc = f64::from(1u32 << 20) / (2.0 * std::f64::consts::PI);
     for (i, k) in [0usize, 3, 4, 10].into_iter().enumerate() {
         let got = i32::from_le_bytes(pos[i].clone().try_into().unwrap());
@@ -163,11 +163,11 @@ fn master_sets_the_cycle_period_and_the_plant_follows() {
         got.push(i32::from_le_bytes(f.data()[2..6].try_into().unwrap()));
     }
     let torque: Vec<f64> = permille.iter().map(|&t| f64::from(t) / 1000.0).collect();
-    let opts = flexid::sim::SimOptions {
+    let opts = flexid_core::sim::SimOptions {
         sample_rate_hz: 1000.0,
         ..Default::default()
     };
-    let want = flexid::sim::simulate_position(&chain, &torque, &opts).unwrap();
+    let want = flexid_core::sim::simulate_position(&chain, &torque, &opts).unwrap();
     let inc = f64::from(1u32 << 20) / (2.0 * std::f64::consts::PI);
     for k in 0..torque.len() {
         assert!(

@@ -1,5 +1,5 @@
 //! The main crate's nonlinear plant behind the drive: TPDO positions through RPDO1 + SYNC against
-//! `flexid::plant::simulate_positions` of the same spec.
+//! `flexid_core::plant::simulate_positions` of the same spec.
 
 mod common;
 use common::*;
@@ -10,7 +10,7 @@ use flexid_vdrive::{plant_drive, ClockMode, DrivePlant};
 fn plantsim_behind_the_protocol_matches_its_own_simulation() {
     let text = format!(
         "{}\n[effects]\ncurrent_loop = {{ bandwidth_hz = 600.0 }}\nfriction = {{ coulomb_nm = 0.02, viscous_nms_per_rad = 0.001 }}\n",
-        flexid::cli::plant::DEFAULT_PLANT
+        flexid_core::plant::DEFAULT_PLANT
     );
     let p = DrivePlant::parse(&text, "effects plant").unwrap();
     assert!(p.plant.has_effects());
@@ -33,9 +33,14 @@ fn plantsim_behind_the_protocol_matches_its_own_simulation() {
         got.push(i32::from_le_bytes(f.data()[2..6].try_into().unwrap()));
     }
     let torque: Vec<f64> = permille.iter().map(|&t| f64::from(t) / 1000.0).collect();
-    let want =
-        flexid::plant::simulate_positions(&p.plant.spec(), &torque, 2000.0, p.plant.substeps(), 7)
-            .unwrap();
+    let want = flexid_core::plant::simulate_positions(
+        &p.plant.spec(),
+        &torque,
+        2000.0,
+        p.plant.substeps(),
+        7,
+    )
+    .unwrap();
     let inc = f64::from(1u32 << 20) / (2.0 * std::f64::consts::PI);
     for k in 0..torque.len() {
         assert!(

@@ -73,7 +73,7 @@ fn serve<B: CanBus>(
     fifo_priority: Option<u8>,
 ) -> ExitCode {
     if let Some(p) = fifo_priority {
-        let granted = flexid::rt::RtSetup::realtime(p).apply();
+        let granted = flexid_rt::RtSetup::realtime(p).apply();
         for r in &granted.refused {
             eprintln!("flexid-vdrive: {r}");
         }

@@ -21,7 +21,7 @@ pub fn frame(cob: u16, data: &[u8]) -> CanFrame {
 pub fn plant(drive_toml: &str) -> DrivePlant {
     let text = format!(
         "{}\n[drive]\n{drive_toml}\n",
-        flexid::cli::plant::DEFAULT_PLANT
+        flexid_core::plant::DEFAULT_PLANT
     );
     DrivePlant::parse(&text, "test plant").unwrap()
 }

@@ -1,0 +1,17 @@
+//! The whole analysis of one recording, each step kept for the report:
+//! FRF estimation -> total inertia -> AR/R pairs -> the paper's step-by-step algorithm ->
+//! the exact inverse -> Levenberg-Marquardt refinement with automatic model order.
+//!
+//! [`analyze`] is what `flexid identify`, `flexid bode`, the daemon and the tests call.
+
+mod estimate;
+mod json;
+mod pipeline;
+mod summary;
+mod time_cap;
+
+pub use estimate::{estimate_frf, EstimatedFrf};
+pub use json::to_json;
+pub use pipeline::{analyze, Analysis, AnalysisError, AnalysisOptions};
+pub use summary::{Coupling, ModelSummary};
+pub use time_cap::TimeCap;

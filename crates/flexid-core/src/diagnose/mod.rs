@@ -1,0 +1,701 @@
+//! Diagnosis of the sim-to-real gap: where the identified chain and the measurement part
+//! ([`localise`]), what kind of residual it is ([`distortion`]), which unmodelled effect
+//! explains it ([`effects`], ranked in [`rank`]) and how far the gap shrinks with it.
+//!
+//! [`diagnose`] takes one recording per excitation amplitude and the nominal number of
+//! bodies; plain code, no I/O. The CLI is `flexid diagnose`.
+
+pub mod distortion;
+pub mod effects;
+pub mod json;
+pub mod lm;
+pub mod localise;
+pub mod lti;
+pub mod nlsim;
+pub mod rank;
+pub mod search;
+pub mod simplex;
+
+use crate::analysis::{analyze, estimate_frf, AnalysisOptions};
+use crate::frf::{FrfKind, NonExcitedLevels};
+use crate::recording::Recording;
+use distortion::{LevelChange, LevelDistortion};
+use effects::{EffectFit, Lin, Target};
+use localise::Band;
+use lti::LinExt;
+use num_complex::Complex64;
+
+/// The candidate effects, in the order they are reported when tied.
+pub const EFFECTS: [&str; 8] = [
+    "none",
+    "coulomb_friction",
+    "backlash",
+    "hardening_stiffness",
+    "time_delay",
+    "current_loop",
+    "unmodelled_mode",
+    "gravity",
+];
+
+/// Errors of [`diagnose`].
+#[derive(Debug, thiserror::Error)]
+pub enum DiagnoseError {
+    #[error("no recording given")]
+    NoRecordings,
+    #[error("recording {0}: {1}")]
+    Analysis(usize, crate::analysis::AnalysisError),
+    #[error("recording {0}: the response is an acceleration; the diagnosis needs a motor position or velocity")]
+    Kind(usize),
+    #[error("recording {0}: no nominal {1}-mass chain could be fitted")]
+    NoNominal(usize, usize),
+    #[error("the recordings have different sample rates")]
+    Rates,
+}
+
+/// Options of [`diagnose`].
+#[derive(Debug, Clone)]
+pub struct DiagnoseOptions {
+    /// Bodies of the nominal chain.
+    pub masses: usize,
+    /// Analysis band [Hz] (default: the excited band).
+    pub band_hz: Option<[f64; 2]>,
+    /// Sub-steps per sample of the time-domain simulation of amplitude-dependent effects.
+    pub substeps: usize,
+    /// Sub-steps per sample for the spring nonlinearities (backlash, hardening).
+    pub spring_substeps: usize,
+    /// Fit lines per level used by the joint linear refits (all lines are scored).
+    pub fit_lines: usize,
+    /// Run the amplitude-dependent candidates even without amplitude dependence/distortion.
+    pub force_nonlinear: bool,
+    /// The calling thread's CPU clock [ns] for [`Diagnosis::stage_cpu_s`] (for example
+    /// `flexid_rt::clock::thread_cpu_ns`); `None` (the default) leaves the stages empty.
+    /// The core reads no clock of its own: its results depend on the input only.
+    pub cpu_clock: Option<fn() -> Option<u64>>,
+}
+
+impl Default for DiagnoseOptions {
+    fn default() -> Self {
+        DiagnoseOptions {
+            masses: 2,
+            band_hz: None,
+            substeps: 4,
+            spring_substeps: 4,
+            fit_lines: 300,
+            force_nonlinear: false,
+            cpu_clock: None,
+        }
+    }
+}
+
+/// One recording's measured FRF.
+#[derive(Debug, Clone)]
+pub struct Level {
+    pub f: Vec<f64>,
+    pub h: Vec<Complex64>,
+    pub var: Vec<f64>,
+    /// Indices of these lines in the estimator's output (to match simulated estimates).
+    pub keep: Vec<usize>,
+    pub nonexcited: Option<NonExcitedLevels>,
+    pub rec: Recording,
+    pub torque_rms: f64,
+    pub io_delay: u32,
+}
+
+/// The measurements as the effect fits see them.
+#[derive(Debug, Clone)]
+pub struct Data {
+    pub levels: Vec<Level>,
+    pub fs: f64,
+    pub kind: FrfKind,
+    pub band: Option<[f64; 2]>,
+    pub substeps: usize,
+    pub spring_substeps: usize,
+    /// Decimated lines per level (joint refits).
+    pub targets: Vec<Target>,
+    /// All lines per level.
+    pub full_targets: Vec<Target>,
+}
+
+impl Data {
+    /// chi² of a model (per level, all lines).
+    pub fn chi2(&self, model: &[Vec<Complex64>]) -> f64 {
+        self.levels
+            .iter()
+            .zip(model)
+            .map(|(l, m)| localise::z2(&l.h, &l.var, m).iter().sum::<f64>())
+            .sum()
+    }
+    pub fn lines(&self) -> usize {
+        self.levels.iter().map(|l| l.f.len()).sum()
+    }
+    pub fn f_min(&self) -> f64 {
+        self.levels
+            .iter()
+            .map(|l| l.f[0])
+            .fold(f64::INFINITY, f64::min)
+    }
+    pub fn f_max(&self) -> f64 {
+        self.levels
+            .iter()
+            .map(|l| *l.f.last().unwrap())
+            .fold(0.0, f64::max)
+    }
+    pub fn torque_rms_min(&self) -> f64 {
+        self.levels
+            .iter()
+            .map(|l| l.torque_rms)
+            .fold(f64::INFINITY, f64::min)
+    }
+    /// RMS deflection of coupling `k` of `lin` under the lowest (`low`) or highest level.
+    pub fn deflection_rms(&self, lin: &LinExt, k: usize, low: bool) -> f64 {
+        let l = self
+            .levels
+            .iter()
+            .min_by(|a, b| {
+                let o = a.torque_rms.total_cmp(&b.torque_rms);
+                if low {
+                    o
+                } else {
+                    o.reverse()
+                }
+            })
+            .unwrap();
+        let out = nlsim::simulate(lin, nlsim::Nl::None, &l.rec.torque_cmd_nm, self.fs, 1);
+        out.defl_rms.get(k).copied().unwrap_or(0.0)
+    }
+}
+
+fn target(l: &Level, max_lines: usize) -> Target {
+    let n = l.f.len();
+    let idx: Vec<usize> = if n <= max_lines {
+        (0..n).collect()
+    } else {
+        // half log-spaced (the low end), half uniform
+        let mut v: Vec<usize> = (0..max_lines / 2)
+            .map(|i| {
+                ((n as f64 - 1.0).powf(i as f64 / (max_lines / 2 - 1) as f64)).round() as usize
+            })
+            .chain((0..max_lines / 2).map(|i| i * (n - 1) / (max_lines / 2 - 1)))
+            .collect();
+        v.push(0);
+        v.sort_unstable();
+        v.dedup();
+        v
+    };
+    Target {
+        f: idx.iter().map(|&i| l.f[i]).collect(),
+        h: idx.iter().map(|&i| l.h[i]).collect(),
+        w: idx
+            .iter()
+            .map(|&i| l.h[i].norm() / l.var[i].sqrt())
+            .collect(),
+        io_delay: l.io_delay,
+        idx,
+    }
+}
+
+/// Build [`Data`] from recordings (measured FRFs on the excited lines in band).
+pub fn prepare(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Data, DiagnoseError> {
+    if recs.is_empty() {
+        return Err(DiagnoseError::NoRecordings);
+    }
+    let fs = recs[0].sample_rate_hz;
+    let mut levels = Vec::new();
+    let mut kind = FrfKind::DifferencedVelocity;
+    for (i, r) in recs.iter().enumerate() {
+        if (r.sample_rate_hz - fs).abs() > 1e-9 * fs {
+            return Err(DiagnoseError::Rates);
+        }
+        let e = estimate_frf(r, opts.band_hz).map_err(|e| DiagnoseError::Analysis(i, e))?;
+        kind = e.frf.kind;
+        if kind == FrfKind::Other {
+            return Err(DiagnoseError::Kind(i));
+        }
+        let keep: Vec<usize> = (0..e.frf.len())
+            .filter(|&k| {
+                let v = e.frf.var[k];
+                v.is_finite() && v > 0.0 && e.frf.h[k].norm() > 0.0
+            })
+            .collect();
+        let n = r.torque_cmd_nm.len().max(1) as f64;
+        let mean = r.torque_cmd_nm.iter().sum::<f64>() / n;
+        let rms = (r
+            .torque_cmd_nm
+            .iter()
+            .map(|t| (t - mean).powi(2))
+            .sum::<f64>()
+            / n)
+            .sqrt();
+        levels.push(Level {
+            f: keep.iter().map(|&k| e.frf.freq_hz[k]).collect(),
+            h: keep.iter().map(|&k| e.frf.h[k]).collect(),
+            var: keep.iter().map(|&k| e.frf.var[k]).collect(),
+            keep,
+            nonexcited: e.nonexcited,
+            rec: r.clone(),
+            torque_rms: rms,
+            io_delay: r.sidecar.io_delay_samples.unwrap_or(0),
+        });
+    }
+    let targets = levels.iter().map(|l| target(l, opts.fit_lines)).collect();
+    let full_targets = levels.iter().map(|l| target(l, usize::MAX)).collect();
+    Ok(Data {
+        levels,
+        fs,
+        kind,
+        band: opts.band_hz,
+        substeps: opts.substeps,
+        spring_substeps: opts.spring_substeps,
+        targets,
+        full_targets,
+    })
+}
+
+/// The gap in numbers.
+#[derive(Debug, Clone)]
+pub struct Gap {
+    /// Systematic RMS log-complex gap over all lines of all levels [dB], nominal model
+    /// (inverse-variance weighted, noise removed; see [`rms_parts`]).
+    pub before_rms_db: f64,
+    /// Plain RMS of the log-complex gap (noise included), before and after [dB].
+    pub before_raw_rms_db: f64,
+    pub after_raw_rms_db: f64,
+    /// The same with the winning effect (equal to before when the verdict is `none`).
+    pub after_rms_db: f64,
+    /// Magnitude-only and phase-only RMS, before and after [dB, deg].
+    pub before_mag_db: f64,
+    pub after_mag_db: f64,
+    pub before_phase_deg: f64,
+    pub after_phase_deg: f64,
+    /// RMS of the noise alone (one-sigma of the line estimates) [dB].
+    pub noise_rms_db: f64,
+    /// Localised bands (nominal model), with the gap after in each.
+    pub bands: Vec<(Band, f64)>,
+}
+
+/// What the residual is made of.
+#[derive(Debug, Clone)]
+pub struct ResidualKind {
+    /// Reduced chi² of the nominal model (1 = within noise).
+    pub reduced_chi2: f64,
+    pub within_noise: bool,
+    pub nonlinear: bool,
+    pub linear_model_error: bool,
+    pub levels: Vec<LevelDistortion>,
+    pub changes: Vec<LevelChange>,
+}
+
+/// The whole diagnosis.
+#[derive(Debug, Clone)]
+pub struct Diagnosis {
+    pub verdict: &'static str,
+    pub masses: usize,
+    pub nominal: EffectFit,
+    /// Candidates ranked (best first), with scores.
+    pub ranking: Vec<rank::Ranked>,
+    pub winner: Option<EffectFit>,
+    pub gap: Gap,
+    pub residual: ResidualKind,
+    pub data: Data,
+    pub notes: Vec<String>,
+    pub seconds: f64,
+    /// CPU time of the diagnosing thread per stage [s], in order: `prepare` (the measured
+    /// FRFs), `nominal` (identification and joint fit), `residual`, each candidate fitted
+    /// (by effect name), `rank` (ranking and gap). Empty where the thread's CPU time is not
+    /// available.
+    pub stage_cpu_s: Vec<(&'static str, f64)>,
+}
+
+/// Per-stage CPU time of the calling thread (see [`Diagnosis::stage_cpu_s`]), read from
+/// the caller's clock ([`DiagnoseOptions::cpu_clock`]).
+struct StageClock {
+    clock: fn() -> Option<u64>,
+    last: Option<u64>,
+    stages: Vec<(&'static str, f64)>,
+}
+
+impl StageClock {
+    fn start(clock: Option<fn() -> Option<u64>>) -> Self {
+        let clock = clock.unwrap_or(|| None);
+        StageClock {
+            clock,
+            last: clock(),
+            stages: Vec::new(),
+        }
+    }
+
+    /// Close the stage `name` (the CPU time since the previous one).
+    fn lap(&mut self, name: &'static str) {
+        let now = (self.clock)();
+        if let (Some(a), Some(b)) = (self.last, now) {
+            self.stages.push((name, b.saturating_sub(a) as f64 * 1e-9));
+        }
+        self.last = now;
+    }
+}
+
+fn nominal_start(
+    rec: &Recording,
+    masses: usize,
+    band: Option<[f64; 2]>,
+) -> Option<crate::model::Chain> {
+    let opts = AnalysisOptions {
+        masses: Some(masses),
+        band_hz: band,
+        fit: crate::identify::fit::FitOptions {
+            starts: 8,
+            threads: 1,
+            ..AnalysisOptions::default().fit
+        },
+        ..AnalysisOptions::default()
+    };
+    match analyze(rec, &opts) {
+        Ok(a) => a.fit.map(|f| f.chain),
+        Err(_) if masses == 1 => {
+            // a rigid body: its inertia from the low-frequency gain
+            let a = analyze(
+                rec,
+                &AnalysisOptions {
+                    masses: None,
+                    ..opts
+                },
+            )
+            .ok();
+            let j = a
+                .as_ref()
+                .and_then(|a| a.total_inertia.as_ref().map(|t| t.j_kgm2))
+                .or_else(|| {
+                    let e = estimate_frf(rec, band).ok()?;
+                    let k = e.frf.len().min(5).max(1);
+                    let s: f64 = (0..k)
+                        .map(|i| {
+                            1.0 / (2.0
+                                * std::f64::consts::PI
+                                * e.frf.freq_hz[i]
+                                * e.frf.h[i].norm())
+                        })
+                        .sum();
+                    Some(s / k as f64)
+                })?;
+            crate::model::Chain::new(vec![j], vec![], vec![]).ok()
+        }
+        Err(_) => None,
+    }
+}
+
+/// Diagnose the gap between the nominal `opts.masses`-body chain and the recordings (one per
+/// excitation amplitude).
+pub fn diagnose(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Diagnosis, DiagnoseError> {
+    let t0 = std::time::Instant::now();
+    let mut stage = StageClock::start(opts.cpu_clock);
+    let data = prepare(recs, opts)?;
+    stage.lap("prepare");
+    let mut notes = Vec::new();
+    let n = opts.masses.max(1);
+    let top = (0..data.levels.len())
+        .max_by(|&a, &b| {
+            data.levels[a]
+                .torque_rms
+                .total_cmp(&data.levels[b].torque_rms)
+        })
+        .unwrap();
+    // the nominal start: the pipeline's own identification, highest level first
+    let mut order: Vec<usize> = (0..data.levels.len()).collect();
+    order.sort_by(|&a, &b| {
+        data.levels[b]
+            .torque_rms
+            .total_cmp(&data.levels[a].torque_rms)
+    });
+    // every level's identification is a start (a strongly nonlinear level can make its
+    // own one fail, e.g. a spring hardened far beyond its small-signal value); the joint
+    // fit with the lowest chi² over all levels is the nominal model
+    let fit_nominal = |start: crate::model::Chain| {
+        effects::fit_linear(
+            &data,
+            &data.targets,
+            Lin::None,
+            &LinExt::nominal(start.clone()),
+            60,
+        )
+        .map(|r| r.0)
+        .unwrap_or_else(|| LinExt::nominal(start))
+    };
+    let mut best: Option<(LinExt, f64)> = None;
+    for &i in &order {
+        let Some(start) = nominal_start(&data.levels[i].rec, n, opts.band_hz) else {
+            continue;
+        };
+        let lin = fit_nominal(start);
+        let chi2 = data.chi2(&effects::model_on(
+            &lin,
+            data.fs,
+            data.kind,
+            &data.full_targets,
+        ));
+        let done = chi2 < rank::NOISE_CHI2 * data.lines() as f64;
+        if best.as_ref().is_none_or(|b| chi2 < b.1) {
+            best = Some((lin, chi2));
+        }
+        if done {
+            break;
+        }
+    }
+    let nom_lin = match best {
+        Some((lin, _)) => lin,
+        None => {
+            // fewer detected pairs than the model has: one body less, plus one appended
+            // near the top of the band
+            let start = n
+                .checked_sub(1)
+                .filter(|&m| m > 0)
+                .and_then(|m| nominal_start(&data.levels[top].rec, m, opts.band_hz))
+                .and_then(|c| {
+                    effects::mode::starts(&c, &[0.5 * data.f_max()], &[])
+                        .into_iter()
+                        .nth(1)
+                })
+                .ok_or(DiagnoseError::NoNominal(top, n))?;
+            fit_nominal(start)
+        }
+    };
+    let nominal = effects::finish_linear(&data, "none", nom_lin.clone(), vec![], 0);
+    stage.lap("nominal");
+
+    // what the residual is made of
+    let residual = residual_kind(&data, &nominal);
+    stage.lap("residual");
+
+    let mut fits: Vec<EffectFit> = Vec::new();
+    let mut clock = std::time::Instant::now();
+    let mut push = |fits: &mut Vec<EffectFit>,
+                    e: Option<EffectFit>,
+                    name: &'static str,
+                    notes: &mut Vec<String>| {
+        notes.push(format!("{name}: {:.2} s", clock.elapsed().as_secs_f64()));
+        stage.lap(name);
+        clock = std::time::Instant::now();
+        match e {
+            Some(e) => fits.push(e),
+            None => notes.push(format!("{name}: no fit")),
+        }
+    };
+    push(
+        &mut fits,
+        effects::delay::fit(&data, &nom_lin),
+        "time_delay",
+        &mut notes,
+    );
+    push(
+        &mut fits,
+        effects::current_loop::fit(&data, &nom_lin),
+        "current_loop",
+        &mut notes,
+    );
+    push(
+        &mut fits,
+        effects::gravity::fit(&data, &nom_lin),
+        "gravity",
+        &mut notes,
+    );
+    let mut extra: Vec<crate::model::Chain> = Vec::new();
+    if let Some(c) = nominal_start(&data.levels[top].rec, n + 1, opts.band_hz) {
+        extra.push(c);
+    }
+    // candidate frequencies of the extra mode: the most significant localised bands
+    let mut bands: Vec<Band> = Vec::new();
+    for (i, l) in data.levels.iter().enumerate() {
+        bands.extend(localise::bands(i, &l.f, &l.h, &l.var, &nominal.model[i]));
+    }
+    bands.sort_by(|a, b| (b.mean_z2 * b.lines as f64).total_cmp(&(a.mean_z2 * a.lines as f64)));
+    let freqs: Vec<f64> = bands
+        .iter()
+        .take(4)
+        .flat_map(|b| {
+            let c = (b.lo_hz * b.hi_hz).sqrt();
+            [b.lo_hz.max(c / 2.0), c, b.hi_hz]
+        })
+        .collect();
+    let mode_starts = effects::mode::starts(&nom_lin.chain, &freqs, &extra);
+    let mode_fit = effects::mode::fit(&data, &mode_starts);
+    // an "extra body" far heavier than the rest of the axis is the ground: its spring is a
+    // restoring stiffness on the last body (gravity; the nominal chain may have spent a body
+    // on it already). Refitted as gravity from there; the better of the two gravity fits.
+    let ground_as_gravity = mode_fit
+        .as_ref()
+        .and_then(|mf| effects::gravity::from_ground_body(&data, &mf.lin.chain));
+    push(&mut fits, mode_fit, "unmodelled_mode", &mut notes);
+    // early rejection: a linear candidate that already leaves only noise cannot be beaten
+    // significantly by a simulated one
+    let explained = fits
+        .iter()
+        .any(|f| f.chi2 < rank::NOISE_CHI2 * data.lines() as f64);
+    if explained && !opts.force_nonlinear {
+        notes.push(
+            "amplitude-dependent candidates not simulated: a linear candidate leaves only noise"
+                .into(),
+        );
+    } else if residual.nonlinear || opts.force_nonlinear {
+        push(
+            &mut fits,
+            effects::friction::fit(&data, &nom_lin),
+            "coulomb_friction",
+            &mut notes,
+        );
+        push(
+            &mut fits,
+            effects::backlash::fit(&data, &nom_lin),
+            "backlash",
+            &mut notes,
+        );
+        // hardening stiffens the springs at the highest level: start from the chain the
+        // lowest level sees
+        let low = (0..data.levels.len())
+            .min_by(|&a, &b| {
+                data.levels[a]
+                    .torque_rms
+                    .total_cmp(&data.levels[b].torque_rms)
+            })
+            .unwrap();
+        let low_lin =
+            effects::fit_linear(&data, &data.targets[low..low + 1], Lin::None, &nom_lin, 40)
+                .map(|r| r.0)
+                .unwrap_or_else(|| nom_lin.clone());
+        push(
+            &mut fits,
+            effects::hardening::fit(&data, &low_lin),
+            "hardening_stiffness",
+            &mut notes,
+        );
+    } else {
+        notes.push(
+            "amplitude-dependent candidates not simulated: no significant change between levels and no distortion at the detection lines".into(),
+        );
+    }
+    if let Some(g) = ground_as_gravity {
+        match fits.iter().position(|f| f.effect == "gravity") {
+            Some(i) if fits[i].chi2 <= g.chi2 => {}
+            Some(i) => fits[i] = g,
+            None => fits.push(g),
+        }
+    }
+    let (ranking, win) = rank::rank(&data, &nominal, &fits, &residual);
+    let winner = win.map(|i| fits[i].clone());
+    let verdict = winner.as_ref().map(|w| w.effect).unwrap_or("none");
+    let gap = gap_of(&data, &nominal, winner.as_ref());
+    stage.lap("rank");
+    Ok(Diagnosis {
+        verdict,
+        masses: n,
+        nominal,
+        ranking,
+        winner,
+        gap,
+        residual,
+        data,
+        notes,
+        seconds: t0.elapsed().as_secs_f64(),
+        stage_cpu_s: stage.stages,
+    })
+}
+
+fn residual_kind(data: &Data, nominal: &EffectFit) -> ResidualKind {
+    let lines = data.lines() as f64;
+    let reduced = nominal.chi2 / lines;
+    let levels: Vec<LevelDistortion> = data
+        .levels
+        .iter()
+        .enumerate()
+        .map(|(i, l)| distortion::level_distortion(i, l.torque_rms, l.nonexcited.as_ref()))
+        .collect();
+    let mut changes = Vec::new();
+    for a in 0..data.levels.len() {
+        for b in a + 1..data.levels.len() {
+            let (la, lb) = (&data.levels[a], &data.levels[b]);
+            changes.push(distortion::level_change(
+                a, b, &la.f, &la.h, &la.var, &lb.f, &lb.h, &lb.var,
+            ));
+        }
+    }
+    let nonlinear = changes.iter().any(|c| c.significant)
+        || levels
+            .iter()
+            .any(|l| l.detection_excess_db.is_some_and(|d| d > 6.0));
+    // linear model error: the residual normalised by the model is the same at every level
+    let mut same = true;
+    if let Some(c) = changes.first() {
+        same = !c.significant;
+    }
+    ResidualKind {
+        reduced_chi2: reduced,
+        within_noise: reduced < rank::NOISE_CHI2,
+        nonlinear,
+        linear_model_error: reduced >= rank::NOISE_CHI2 && same,
+        levels,
+        changes,
+    }
+}
+
+/// Systematic RMS of the log-complex gap, magnitude and phase parts: inverse-variance
+/// weighted over all lines with the expected noise contribution removed,
+/// `sqrt(max(0, sum w (|e|² - s²)) / sum w)`, `s² = var/|H|²`, `w = 1/s²` (the weighted
+/// mean of `|e|²` is `chi²/sum w`; noise adds `lines/sum w`). Also the plain unweighted RMS.
+pub fn rms_parts(data: &Data, model: &[Vec<Complex64>]) -> (f64, f64, f64, f64) {
+    let (mut s, mut sm, mut sp, mut sw, mut k, mut raw) = (0.0, 0.0, 0.0, 0.0, 0usize, 0.0);
+    for (l, m) in data.levels.iter().zip(model) {
+        for ((h, m), v) in l.h.iter().zip(m).zip(&l.var) {
+            let e = (h / m).ln();
+            let s2 = v / h.norm_sqr();
+            let w = 1.0 / s2;
+            s += w * (e.norm_sqr() - s2);
+            sm += w * (e.re * e.re - 0.5 * s2);
+            sp += w * (e.im * e.im - 0.5 * s2);
+            sw += w;
+            raw += e.norm_sqr();
+            k += 1;
+        }
+    }
+    let sw = sw.max(1e-300);
+    (
+        localise::DB_PER_NEPER * (s.max(0.0) / sw).sqrt(),
+        localise::DB_PER_NEPER * (sm.max(0.0) / sw).sqrt(),
+        (sp.max(0.0) / sw).sqrt().to_degrees(),
+        localise::DB_PER_NEPER * (raw / k.max(1) as f64).sqrt(),
+    )
+}
+
+fn gap_of(data: &Data, nominal: &EffectFit, winner: Option<&EffectFit>) -> Gap {
+    let after_model = winner.map(|w| &w.model).unwrap_or(&nominal.model);
+    let (b, bm, bp, braw) = rms_parts(data, &nominal.model);
+    let (a, am, ap, araw) = rms_parts(data, after_model);
+    let mut noise = 0.0;
+    for l in &data.levels {
+        for (h, v) in l.h.iter().zip(&l.var) {
+            noise += v / h.norm_sqr();
+        }
+    }
+    let noise = localise::DB_PER_NEPER * (noise / data.lines().max(1) as f64).sqrt();
+    let mut bands = Vec::new();
+    for (i, l) in data.levels.iter().enumerate() {
+        for band in localise::bands(i, &l.f, &l.h, &l.var, &nominal.model[i]) {
+            let idx: Vec<usize> = (0..l.f.len())
+                .filter(|&k| l.f[k] >= band.lo_hz && l.f[k] <= band.hi_hz)
+                .collect();
+            let h: Vec<Complex64> = idx.iter().map(|&k| l.h[k]).collect();
+            let m: Vec<Complex64> = idx.iter().map(|&k| after_model[i][k]).collect();
+            let after = localise::gap_rms_db(&h, &m);
+            bands.push((band, after));
+        }
+    }
+    Gap {
+        before_rms_db: b,
+        after_rms_db: a,
+        before_raw_rms_db: braw,
+        after_raw_rms_db: araw,
+        before_mag_db: bm,
+        after_mag_db: am,
+        before_phase_deg: bp,
+        after_phase_deg: ap,
+        noise_rms_db: noise,
+        bands,
+    }
+}

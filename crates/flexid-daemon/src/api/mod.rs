@@ -1,0 +1,137 @@
+//! The HTTP API (axum). Every route needs `Authorization: Bearer <token>`; bodies are
+//! limited to [`BODY_LIMIT`] bytes; errors are JSON `{"error", "field"}`. Documented in
+//! `docs/openapi.yaml` (a test checks that every route of [`ROUTES`] is in it).
+
+mod error;
+mod handlers;
+mod sse;
+
+pub use error::ApiError;
+
+use super::service::Service;
+use axum::extract::{Request, State};
+use axum::http::{header, StatusCode};
+use axum::middleware::{self, Next};
+use axum::response::{IntoResponse, Response};
+use axum::routing::{get, post};
+use axum::Router;
+use std::sync::Arc;
+
+/// Largest request body [bytes].
+pub const BODY_LIMIT: usize = 64 * 1024;
+
+/// Every route: (method, path in OpenAPI notation).
+pub const ROUTES: &[(&str, &str)] = &[
+    ("get", "/api/v1/axes"),
+    ("post", "/api/v1/axes/{axis}/sweeps"),
+    ("get", "/api/v1/sweeps/{id}"),
+    ("get", "/api/v1/sweeps/{id}/events"),
+    ("post", "/api/v1/sweeps/{id}/abort"),
+    ("get", "/api/v1/sweeps/{id}/recording.csv"),
+    ("get", "/api/v1/sweeps/{id}/recording.json"),
+    ("get", "/api/v1/sweeps/{id}/frf.csv"),
+    ("get", "/api/v1/sweeps/{id}/bode.svg"),
+    ("get", "/api/v1/sweeps/{id}/diagnosis"),
+];
+
+/// The router over `svc`.
+pub fn router(svc: Arc<Service>) -> Router {
+    use handlers as h;
+    Router::new()
+        .route("/api/v1/axes", get(h::list_axes))
+        .route("/api/v1/axes/{axis}/sweeps", post(h::start_sweep))
+        .route("/api/v1/sweeps/{id}", get(h::sweep_status))
+        .route("/api/v1/sweeps/{id}/events", get(sse::events))
+        .route("/api/v1/sweeps/{id}/abort", post(h::abort))
+        .route("/api/v1/sweeps/{id}/recording.csv", get(h::recording_csv))
+        .route("/api/v1/sweeps/{id}/recording.json", get(h::recording_json))
+        .route("/api/v1/sweeps/{id}/frf.csv", get(h::frf_csv))
+        .route("/api/v1/sweeps/{id}/bode.svg", get(h::bode_svg))
+        .route("/api/v1/sweeps/{id}/diagnosis", get(h::diagnosis))
+        .fallback(|| async { ApiError::new(StatusCode::NOT_FOUND, "no such route") })
+        .layer(axum::extract::DefaultBodyLimit::max(BODY_LIMIT))
+        .layer(tower_http::limit::RequestBodyLimitLayer::new(BODY_LIMIT))
+        .layer(middleware::map_response(json_413))
+        .layer(middleware::from_fn_with_state(svc.clone(), auth))
+        .with_state(svc)
+}
+
+/// Bearer-token check, before anything else (the body is not read).
+async fn auth(State(svc): State<Arc<Service>>, req: Request, next: Next) -> Response {
+    let ok = req
+        .headers()
+        .get(header::AUTHORIZATION)
+        .and_then(|v| v.as_bytes().strip_prefix(b"Bearer "))
+        .is_some_and(|t| svc.token.matches(t));
+    if !ok {
+        let mut r = ApiError::new(StatusCode::UNAUTHORIZED, "missing or wrong bearer token")
+            .into_response();
+        r.headers_mut().insert(
+            header::WWW_AUTHENTICATE,
+            header::HeaderValue::from_static("Bearer"),
+        );
+        return r;
+    }
+    next.run(req).await
+}
+
+/// The body-limit layer answers 413 in plain text; give it the JSON error shape.
+async fn json_413(r: Response) -> Response {
+    if r.status() == StatusCode::PAYLOAD_TOO_LARGE
+        && r.headers()
+            .get(header::CONTENT_TYPE)
+            .is_none_or(|v| v != "application/json")
+    {
+        return ApiError::new(
+            StatusCode::PAYLOAD_TOO_LARGE,
+            format!("the request body is larger than {BODY_LIMIT} bytes"),
+        )
+        .into_response();
+    }
+    r
+}
+
+#[cfg(test)]
+mod tests {
+    use super::ROUTES;
+
+    /// The `.route(PATH, METHOD(...))` calls of [`super::router`], from this file's source.
+    fn routes_in_router() -> Vec<(String, String)> {
+        let src = include_str!("mod.rs");
+        let body = &src[src.find("pub fn router").unwrap()..src.find("async fn auth").unwrap()];
+        body.split(".route(\"")
+            .skip(1)
+            .map(|r| {
+                let path = r[..r.find('"').unwrap()].to_string();
+                let rest = &r[r.find(", ").unwrap() + 2..];
+                let method = rest[..rest.find('(').unwrap()].to_string();
+                (method, path)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn every_route_is_listed_and_documented() {
+        let router = routes_in_router();
+        assert_eq!(router.len(), ROUTES.len(), "{router:?}");
+        for (m, p) in &router {
+            assert!(
+                ROUTES.contains(&(m.as_str(), p.as_str())),
+                "{m} {p} not in ROUTES"
+            );
+        }
+        let spec = include_str!("../../../../docs/openapi.yaml");
+        assert!(spec.starts_with("openapi: 3.1"));
+        for (method, path) in ROUTES {
+            let start = spec
+                .find(&format!("\n  {path}:\n"))
+                .unwrap_or_else(|| panic!("{path} is not in docs/openapi.yaml"));
+            let block = &spec[start + path.len() + 4..];
+            let end = block.find("\n  /").unwrap_or(block.len());
+            assert!(
+                block[..end].contains(&format!("\n    {method}:")),
+                "{method} {path} is not in docs/openapi.yaml"
+            );
+        }
+    }
+}

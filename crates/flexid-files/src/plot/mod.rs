@@ -1,0 +1,21 @@
+//! Bode plots as SVG, for commissioning technicians.
+//!
+//! [`BodePlot`] draws a measured [`flexid_core::frf::Frf`] with its uncertainty band, optional
+//! model curves and resonance / anti-resonance markers in stacked magnitude, phase and
+//! (when available) coherence panels over a logarithmic frequency axis.
+
+mod axes;
+mod bode;
+mod error;
+mod gap;
+mod series;
+mod units;
+
+pub use bode::BodePlot;
+pub use error::PlotError;
+pub use gap::gap_svg;
+pub use series::{BAND_FLOOR_RELATIVE, PHASE_BAND_MAX_DEG};
+pub use units::{frf_unit, magnitude_label};
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,289 @@
+use flexid_core::analysis::Analysis;
+use std::fmt::Write;
+
+fn pct(std: f64, v: f64) -> String {
+    if std.is_finite() && v != 0.0 {
+        format!("{:.2} %", 100.0 * std / v.abs())
+    } else {
+        "n/a".into()
+    }
+}
+
+/// The analysis as a readable report (units in every heading, uncertainties as one sigma).
+pub fn render_report(a: &Analysis, title: &str) -> String {
+    let mut s = String::new();
+    let m = &a.measured;
+    let f = &m.frf;
+    let _ = writeln!(s, "flexid identify: {title}");
+    if let Some(m) = a.time_cap.as_ref().and_then(|t| t.message()) {
+        let _ = writeln!(s, "{m}");
+    }
+    let rel: Vec<f64> = (0..f.len())
+        .map(|i| f.relative_std(i))
+        .filter(|v| v.is_finite())
+        .collect();
+    let mut sorted = rel.clone();
+    sorted.sort_by(f64::total_cmp);
+    let median = sorted.get(sorted.len() / 2).copied().unwrap_or(f64::NAN);
+    let _ = writeln!(
+        s,
+        "FRF: {} estimator, {} {} averaged, {} lines {:.3} .. {:.3} Hz, fs {} Hz, {:?} response; median line uncertainty {:.2} % ({:.3} dB)",
+        m.method,
+        m.averages,
+        if m.method == "periodic" { "periods" } else { "segments" },
+        f.len(),
+        f.freq_hz.first().copied().unwrap_or(f64::NAN),
+        f.freq_hz.last().copied().unwrap_or(f64::NAN),
+        a.sample_rate_hz,
+        f.kind,
+        100.0 * median,
+        20.0 * (1.0 + median).log10()
+    );
+    if a.delay_samples > 0 {
+        let _ = writeln!(
+            s,
+            "command delay: {} samples (from the recording)",
+            a.delay_samples
+        );
+    }
+    let _ = writeln!(s);
+    match &a.total_inertia {
+        Some(t) => {
+            let _ = writeln!(
+                s,
+                "Step 1  total inertia J = {:.5e} kg m^2 +- {} ({})",
+                t.j_kgm2,
+                pct(t.std_kgm2, t.j_kgm2),
+                t.source.replace('_', " ")
+            );
+            if let Some(e) = &t.estimate {
+                let _ = writeln!(
+                    s,
+                    "        from {} lines {:.3} .. {:.3} Hz, chi2/dof {:.2}{}",
+                    e.lines_used,
+                    e.band_hz[0],
+                    e.band_hz[1],
+                    e.chi2_per_dof,
+                    if e.curvature_corrected {
+                        ", curvature extrapolated to 0 Hz"
+                    } else {
+                        ""
+                    }
+                );
+            }
+        }
+        None => {
+            let _ = writeln!(s, "Step 1  total inertia: not determined");
+        }
+    }
+    let _ = writeln!(s);
+    let _ = writeln!(
+        s,
+        "Anti-resonance / resonance pairs (a +180 deg phase rise marks a compliant coupling)"
+    );
+    if a.detection.pairs.is_empty() {
+        let _ = writeln!(
+            s,
+            "  none detected: the axis behaves as one rigid inertia in this band"
+        );
+    } else {
+        let _ = writeln!(
+            s,
+            "  {:>4}  {:>20}  {:>20}  {:>11}  {:>7}  {:>10}",
+            "pair", "AR [Hz]", "R [Hz]", "(fR/fAR)^2", "L [dB]", "rise [deg]"
+        );
+        for (k, p) in a.detection.pairs.iter().enumerate() {
+            let m = (p.r_hz / p.ar_hz).powi(2);
+            let _ = writeln!(
+                s,
+                "  {:>4}  {:>20}  {:>20}  {:>11.4}  {:>7.2}  {:>10.0}",
+                k + 1,
+                freq(p.ar_hz, p.ar_std_hz, p.ar_below_band, "<"),
+                freq(p.r_hz, p.r_std_hz, p.r_above_band, ">"),
+                m,
+                20.0 * m.log10(),
+                p.phase_rise_deg
+            );
+        }
+    }
+    let mut rejected: Vec<_> = a.detection.rejected.iter().collect();
+    rejected.sort_by(|x, y| y.prominence_sigma.total_cmp(&x.prominence_sigma));
+    const SHOWN: usize = 6;
+    if rejected.len() > SHOWN {
+        let _ = writeln!(
+            s,
+            "  ({} candidates rejected; the {SHOWN} most significant:)",
+            rejected.len()
+        );
+    }
+    for r in rejected.iter().take(SHOWN) {
+        let _ = writeln!(
+            s,
+            "  rejected {:?} at {:.3} Hz ({:.1} dB, {:.1} sigma): {}",
+            r.kind, r.freq_hz, r.prominence_db, r.prominence_sigma, r.reason
+        );
+    }
+    if !a.detection.peaks.is_empty() {
+        let _ = writeln!(
+            s,
+            "  significant resonance peaks (paired or not; * = resonance of a pair above):"
+        );
+        for p in &a.detection.peaks {
+            let _ = writeln!(
+                s,
+                "    {:>20} {} ({:.1} dB, {:.0} sigma)",
+                freq(p.freq_hz, p.std_hz, false, ""),
+                if p.paired { "*" } else { " " },
+                p.prominence_db,
+                p.prominence_sigma
+            );
+        }
+    }
+    if let Some(p) = &a.paper {
+        let _ = writeln!(s);
+        let _ = writeln!(
+            s,
+            "Paper step-by-step (each pair an isolated two-body reducer, lowest first)"
+        );
+        for st in &p.pairs {
+            let _ = writeln!(
+                s,
+                "  pair {}: {} = {:.5e} kg m^2, J{} = {:.5e} kg m^2 switched off, c{} = {:.5e} N m/rad",
+                st.pair,
+                if st.body == 2 { "J1".to_string() } else { format!("J1+..+J{}", st.body - 1) },
+                st.inertia_above_kgm2,
+                st.body,
+                st.body_inertia_kgm2,
+                st.coupling,
+                st.stiffness_nm_per_rad
+            );
+        }
+    }
+    if let Some(e) = &a.exact {
+        let _ = writeln!(s, "Exact inverse (the chain with exactly these spectra):");
+        let _ = writeln!(s, "  J [kg m^2] = {}", list(&e.inertia_kgm2));
+        let _ = writeln!(s, "  c [N m/rad] = {}", list(&e.stiffness_nm_per_rad));
+    }
+    if let (Some(fit), Some(model)) = (&a.fit, &a.model) {
+        let _ = writeln!(s);
+        let _ = writeln!(
+            s,
+            "Identified model: {} bodies (Levenberg-Marquardt, {} starts, {} reached the best; chi2/dof {:.2}; residual {:.3} dB / {:.2} deg RMS over {} lines)",
+            model.masses,
+            fit.starts,
+            fit.starts_converged,
+            fit.chi2_per_dof,
+            fit.residual_rms_db,
+            fit.residual_rms_deg,
+            fit.lines_used
+        );
+        let _ = writeln!(
+            s,
+            "  {:<6} {:>14} {:>10}",
+            "body", "J [kg m^2]", "+- 1 sigma"
+        );
+        for i in 0..model.masses {
+            let _ = writeln!(
+                s,
+                "  J{:<5} {:>14.5e} {:>10}{}",
+                i + 1,
+                model.inertia_kgm2[i],
+                pct(model.inertia_std_kgm2[i], model.inertia_kgm2[i]),
+                if i == 0 { "  (motor side)" } else { "" }
+            );
+        }
+        if model.masses > 1 {
+            let _ = writeln!(
+                s,
+                "  {:<10} {:>14} {:>10} {:>16} {:>10}",
+                "coupling", "c [N m/rad]", "+- 1 sigma", "d [N m s/rad]", "+- 1 sigma"
+            );
+            for i in 0..model.masses - 1 {
+                let _ = writeln!(
+                    s,
+                    "  c{:<2}J{}-J{:<3} {:>14.5e} {:>10} {:>16.4e} {:>10}",
+                    i + 1,
+                    i + 1,
+                    i + 2,
+                    model.stiffness_nm_per_rad[i],
+                    pct(
+                        model.stiffness_std_nm_per_rad[i],
+                        model.stiffness_nm_per_rad[i]
+                    ),
+                    model.damping_nms_per_rad[i],
+                    pct(
+                        model.damping_std_nms_per_rad[i],
+                        model.damping_nms_per_rad[i]
+                    )
+                );
+            }
+            let _ = writeln!(s, "  model AR [Hz] = {}", list(&model.antiresonance_hz));
+            let _ = writeln!(s, "  model R  [Hz] = {}", list(&model.resonance_hz));
+            let _ = writeln!(s, "  damping ratio = {}", list(&model.damping_ratio));
+            let _ = writeln!(s);
+            let _ = writeln!(s, "Where the compliance is:");
+            for c in &model.couplings {
+                let _ = writeln!(
+                    s,
+                    "  resonance {:.3} Hz: coupling c{} between body {} and body {} (c = {:.4e} N m/rad) holds {:.0} % of the mode's strain energy",
+                    c.resonance_hz,
+                    c.index,
+                    c.index,
+                    c.index + 1,
+                    c.stiffness_nm_per_rad,
+                    100.0 * c.strain_energy_share
+                );
+            }
+            if let Some(lowest) = model.couplings.first() {
+                let _ = writeln!(
+                    s,
+                    "  -> the lowest resonance limits the servo bandwidth: stiffening coupling c{} raises it",
+                    lowest.index
+                );
+            }
+        }
+        if !a.orders.is_empty() {
+            let chosen = model.masses;
+            let items: Vec<String> = a
+                .orders
+                .iter()
+                .map(|o| match &o.error {
+                    Some(e) if e.contains(flexid_core::identify::fit::NOT_TRIED) => {
+                        format!("{} bodies not tried (time cap)", o.masses)
+                    }
+                    Some(e) => format!("{} bodies failed ({e})", o.masses),
+                    None => format!(
+                        "{} bodies BIC {:.1}{}",
+                        o.masses,
+                        o.bic,
+                        if o.masses == chosen { " (chosen)" } else { "" }
+                    ),
+                })
+                .collect();
+            let _ = writeln!(s, "Model order: {}", items.join(", "));
+        }
+    }
+    if !a.notes.is_empty() {
+        let _ = writeln!(s);
+        let _ = writeln!(s, "Notes:");
+        for n in &a.notes {
+            let _ = writeln!(s, "  - {n}");
+        }
+    }
+    s
+}
+
+fn freq(v: f64, std: f64, bound: bool, sign: &str) -> String {
+    if bound {
+        format!("{sign} {v:.3} (edge)")
+    } else if std.is_finite() {
+        format!("{v:.3} +- {std:.3}")
+    } else {
+        format!("{v:.3}")
+    }
+}
+
+fn list(v: &[f64]) -> String {
+    let items: Vec<String> = v.iter().map(|x| format!("{x:.5e}")).collect();
+    format!("[{}]", items.join(", "))
+}

@@ -1,0 +1,129 @@
+//! The readable report of a diagnosis.
+
+use flexid_core::diagnose::Diagnosis;
+use std::fmt::Write;
+
+pub fn render(d: &Diagnosis) -> String {
+    let mut s = String::new();
+    let g = &d.gap;
+    let _ = writeln!(
+        s,
+        "flexid diagnose: nominal {}-mass chain, {} recording(s), {} lines",
+        d.masses,
+        d.data.levels.len(),
+        d.data.lines()
+    );
+    let _ = writeln!(s, "\nVERDICT: {}", d.verdict);
+    let _ = writeln!(
+        s,
+        "gap (systematic RMS log-complex, noise removed, 1 rad of phase = 8.69 dB): before {:.3} dB, after {:.3} dB ({:.1}x)\n  plain RMS incl. noise {:.3} -> {:.3} dB; noise alone {:.3} dB",
+        g.before_rms_db,
+        g.after_rms_db,
+        g.before_rms_db / g.after_rms_db.max(1e-12),
+        g.before_raw_rms_db,
+        g.after_raw_rms_db,
+        g.noise_rms_db
+    );
+    let _ = writeln!(
+        s,
+        "  magnitude {:.3} -> {:.3} dB, phase {:.2} -> {:.2} deg",
+        g.before_mag_db, g.after_mag_db, g.before_phase_deg, g.after_phase_deg
+    );
+    let r = &d.residual;
+    let _ = writeln!(
+        s,
+        "\nResidual of the nominal model: reduced chi2 {:.2} ({})",
+        r.reduced_chi2,
+        if r.within_noise {
+            "within noise"
+        } else {
+            "significant"
+        }
+    );
+    for l in &r.levels {
+        let _ = writeln!(
+            s,
+            "  level {}: torque {:.4} N m RMS; detection lines {}",
+            l.level,
+            l.torque_rms_nm,
+            match (l.detection_excess_db, l.detection_lines_hit) {
+                (Some(e), Some(h)) =>
+                    format!("{e:+.1} dB over noise, {:.0} % of them > 10 dB", 100.0 * h),
+                _ => "none (no odd random-phase design)".into(),
+            }
+        );
+    }
+    for c in &r.changes {
+        let _ = writeln!(
+            s,
+            "  FRF change level {} -> {}: mean z2 {:.2}, RMS {:.3} dB: {}",
+            c.a,
+            c.b,
+            c.mean_z2,
+            c.rms_db,
+            if c.significant {
+                "amplitude dependent"
+            } else {
+                "within noise"
+            }
+        );
+    }
+    let _ = writeln!(
+        s,
+        "  => noise {}, nonlinear distortion {}, linear model error {}",
+        if r.within_noise { "only" } else { "not alone" },
+        if r.nonlinear { "present" } else { "not seen" },
+        if r.linear_model_error {
+            "present"
+        } else {
+            "not seen"
+        }
+    );
+    let _ = writeln!(
+        s,
+        "\nBands where the difference is significant (nominal model):"
+    );
+    if g.bands.is_empty() {
+        let _ = writeln!(s, "  none");
+    }
+    for (b, after) in &g.bands {
+        let _ = writeln!(
+            s,
+            "  level {} {:9.3} - {:9.3} Hz ({:4} lines): {:.2} dB, {:.1} deg [{}{}], mean z2 {:.1}; after {:.2} dB",
+            b.level,
+            b.lo_hz,
+            b.hi_hz,
+            b.lines,
+            b.excess_db,
+            b.excess_deg,
+            if b.magnitude_significant { "mag " } else { "" },
+            if b.phase_significant { "phase" } else { "" },
+            b.mean_z2,
+            after
+        );
+    }
+    let _ = writeln!(
+        s,
+        "\nRanking (score = chi2 reduction - added params x ln(lines)):"
+    );
+    for k in &d.ranking {
+        let ps: Vec<String> = k
+            .params
+            .iter()
+            .map(|p| format!("{} = {:.4e} +- {:.1e}", p.name, p.value, p.std))
+            .collect();
+        let _ = writeln!(
+            s,
+            "  {:20} after {:8.3} dB  score {:12.1}  {}",
+            k.effect,
+            k.after_rms_db,
+            k.score,
+            ps.join(", ")
+        );
+    }
+    for n in &d.notes {
+        let _ = writeln!(s, "note: {n}");
+    }
+    let _ = writeln!(s, "({:.2} s)", d.seconds);
+    s
+}

@@ -1,0 +1,6 @@
+//! Plain-text reports, as `flexid identify` and `flexid diagnose` print them.
+
+pub mod analysis;
+pub mod diagnosis;
+
+pub use analysis::render_report;

@@ -1,0 +1,406 @@
+//! The sweep loop over a [`CyclicDrive`].
+
+use super::plan::{Pacing, SweepPlan};
+use super::simulated::SimulatedFault;
+use flexid_canopen::{Counters, CyclicDrive, MasterError};
+use flexid_core::excitation::ExcitationKind;
+use flexid_core::recording::{CycleCounters, Recording, RecordingEnd, Sidecar};
+use flexid_rt::clock::{self, InstantMap, MonoNs};
+use flexid_rt::{RtGranted, RtSetup};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+/// Why a sweep stopped.
+#[derive(Debug, Clone, PartialEq)]
+pub enum StopReason {
+    /// The planned excitation ran to its end.
+    Complete,
+    /// The drive reported a fault (EMCY, Fault state, left Operation enabled, NMT change).
+    DriveFault(String),
+    /// Feedback (TPDOs) lost beyond the budget, or missing in too many consecutive cycles.
+    FeedbackLost(String),
+    /// |velocity| above the limit.
+    Overspeed {
+        /// The velocity measured [rad/s].
+        velocity_rad_s: f64,
+        /// The limit [rad/s].
+        limit_rad_s: f64,
+    },
+    /// The bus failed.
+    BusError(String),
+    /// Any other error of the drive interface.
+    DriveError(String),
+    /// The wall-time limit was reached.
+    DurationLimit(Duration),
+    /// Stopped from outside (Ctrl-C, SIGTERM).
+    Interrupted,
+}
+
+impl StopReason {
+    /// The text written to the sidecar's `end.reason`.
+    pub fn text(&self) -> String {
+        match self {
+            StopReason::Complete => "excitation complete".into(),
+            StopReason::DriveFault(e) => format!("drive fault: {e}"),
+            StopReason::FeedbackLost(e) => format!("feedback lost: {e}"),
+            StopReason::Overspeed {
+                velocity_rad_s,
+                limit_rad_s,
+            } => format!(
+                "speed limit: |velocity| {:.3} rad/s above --max-speed-rad-s {limit_rad_s}",
+                velocity_rad_s.abs()
+            ),
+            StopReason::BusError(e) => format!("bus error: {e}"),
+            StopReason::DriveError(e) => format!("drive error: {e}"),
+            StopReason::DurationLimit(d) => {
+                format!("duration limit: {:.1} s reached", d.as_secs_f64())
+            }
+            StopReason::Interrupted => "interrupted (Ctrl-C / SIGTERM)".into(),
+        }
+    }
+
+    /// Whether the drive itself failed (then the torque is not ramped: the drive is off
+    /// or unreachable).
+    pub fn drive_failed(&self) -> bool {
+        matches!(
+            self,
+            StopReason::DriveFault(_)
+                | StopReason::FeedbackLost(_)
+                | StopReason::BusError(_)
+                | StopReason::DriveError(_)
+        )
+    }
+
+    /// Classify an error of a [`CyclicDrive`].
+    pub fn of_error(e: &(dyn std::error::Error + 'static)) -> Self {
+        let text = e.to_string();
+        if let Some(m) = e.downcast_ref::<MasterError>() {
+            return match m {
+                MasterError::Emergency { .. }
+                | MasterError::Fault { .. }
+                | MasterError::Disabled { .. }
+                | MasterError::NmtStateChanged { .. } => StopReason::DriveFault(text),
+                MasterError::TpdoLost { .. } => StopReason::FeedbackLost(text),
+                MasterError::Bus { .. } => StopReason::BusError(text),
+                _ => StopReason::DriveError(text),
+            };
+        }
+        if e.downcast_ref::<SimulatedFault>().is_some() {
+            return StopReason::DriveFault(text);
+        }
+        StopReason::DriveError(text)
+    }
+}
+
+/// Progress, reported after every period (multisine) or second (other excitations).
+#[derive(Debug, Clone, Copy)]
+pub struct Progress {
+    /// Cycles done.
+    pub cycle: u64,
+    /// Cycles planned.
+    pub total: u64,
+    /// Periods done and planned (multisine; 0 otherwise).
+    pub periods_done: usize,
+    /// Periods planned, transient ones included.
+    pub periods_total: usize,
+    /// Wall time since the first cycle.
+    pub elapsed: Duration,
+    /// Counters of the exchange.
+    pub counters: Counters,
+}
+
+/// What a sweep measured and how it ended.
+#[derive(Debug, Clone)]
+pub struct SweepOutcome {
+    /// The rows measured (all planned ones when complete); its sidecar holds the
+    /// excitation, `end` and `cycle_counters` (the caller adds `drive`).
+    pub recording: Recording,
+    /// Why it stopped.
+    pub reason: StopReason,
+    /// The sidecar's `end`.
+    pub end: RecordingEnd,
+    /// Counters of the exchange at the end (ramp included).
+    pub counters: Counters,
+    /// Wall time of the recorded cycles.
+    pub elapsed: Duration,
+    /// Cycles started more than half a period behind the real-time schedule (the
+    /// schedule restarted from each of them; 0 in lock-step).
+    pub overruns: u64,
+    /// Cycles run in the ramp to zero torque.
+    pub ramp_cycles: usize,
+    /// Why the ramp did not finish, if it did not.
+    pub ramp_error: Option<String>,
+}
+
+impl SweepOutcome {
+    /// True when the planned excitation ran to its end.
+    pub fn complete(&self) -> bool {
+        self.reason == StopReason::Complete
+    }
+
+    /// Recorded cycles per second of wall time.
+    pub fn cycles_per_s(&self) -> f64 {
+        self.recording.len() as f64 / self.elapsed.as_secs_f64().max(1e-9)
+    }
+}
+
+/// The real-time schedule on the monotonic clock: absolute deadlines
+/// ([`clock::sleep_until_ns`], `clock_nanosleep` with `TIMER_ABSTIME` on Linux), so a late
+/// wake-up does not shift the following cycles. Cycle k's slot starts at `slot_ns` and its
+/// feedback is due one period later. A master that falls more than half a period behind
+/// (preempted, a loaded host) restarts the schedule from now, counted as an overrun:
+/// firing the missed slots back to back would give the drive SYNCs closer than a period
+/// and each cycle no time to answer.
+struct Schedule {
+    map: InstantMap,
+    period_ns: u64,
+    slot_ns: MonoNs,
+    overruns: u64,
+}
+
+impl Schedule {
+    fn new(period: Duration) -> Self {
+        Self {
+            map: InstantMap::calibrate(),
+            period_ns: (period.as_nanos() as u64).max(1),
+            slot_ns: clock::now_ns(),
+            overruns: 0,
+        }
+    }
+
+    /// The deadline of the cycle starting now (the end of its slot).
+    #[inline]
+    fn next_deadline(&mut self) -> Instant {
+        let now = clock::now_ns();
+        if now > self.slot_ns + self.period_ns / 2 {
+            self.slot_ns = now;
+            self.overruns += 1;
+        }
+        self.slot_ns += self.period_ns;
+        self.map.instant(self.slot_ns)
+    }
+
+    /// Sleeps until the end of the current slot (absolute).
+    #[inline]
+    fn wait(&self) {
+        clock::sleep_until_ns(self.slot_ns);
+    }
+}
+
+/// The scheduling asked for a real-time sweep's cycle thread: `SCHED_FIFO` 80. Memory is
+/// not locked (the loop does not allocate; the process goes on to the analysis after it).
+pub fn realtime_setup() -> RtSetup {
+    RtSetup {
+        lock_memory: false,
+        ..RtSetup::realtime(80)
+    }
+}
+
+/// Runs [`run_sweep`] on a cycle thread of its own (joined before returning) with `setup`
+/// applied when the OS permits; one line on stderr says what was granted, or what was
+/// refused and what that means for the cycle. The calling thread's scheduling is left
+/// alone (the analysis that follows runs at normal priority). Returns the outcome and
+/// what was granted.
+pub fn run_sweep_on_cycle_thread<D: CyclicDrive + Send>(
+    drive: &mut D,
+    plan: &SweepPlan,
+    stop: &AtomicBool,
+    progress: &mut (dyn FnMut(&Progress) + Send),
+    setup: RtSetup,
+) -> (SweepOutcome, RtGranted) {
+    std::thread::scope(|s| {
+        let h = s.spawn(move || {
+            let granted = setup.apply();
+            match (setup.fifo_priority, granted.fifo_priority) {
+                (_, Some(p)) => {
+                    eprintln!(
+                        "flexid sweep: real-time cycle thread: SCHED_FIFO priority {p} granted"
+                    )
+                }
+                (Some(_), None) => eprintln!(
+                    "flexid sweep: real-time cycle thread at normal priority: {}; feedback \
+                     may be late at kHz rates on a loaded machine",
+                    granted.refused.join("; ")
+                ),
+                (None, None) => {}
+            }
+            (run_sweep(drive, plan, stop, progress), granted)
+        });
+        h.join().unwrap_or_else(|p| std::panic::resume_unwind(p))
+    })
+}
+
+/// Runs `plan` on an enabled `drive`: one cycle per planned set-point, every one recorded
+/// (into buffers allocated up front: the loop does not allocate), then the torque ramped
+/// from its last value to zero over `plan.ramp_cycles` cycles unless the drive failed.
+/// `stop` is polled every cycle. `progress` is called after every period (multisine) or
+/// every second. The caller disables the drive afterwards.
+pub fn run_sweep<D: CyclicDrive>(
+    drive: &mut D,
+    plan: &SweepPlan,
+    stop: &AtomicBool,
+    progress: &mut dyn FnMut(&Progress),
+) -> SweepOutcome {
+    let n = plan.torque_nm.len();
+    let fs = plan.cycle_hz;
+    let period = plan.period();
+    let mut torque = Vec::with_capacity(n);
+    let mut position = Vec::with_capacity(n);
+    let mut velocity = Vec::with_capacity(n);
+    let mut torque_actual = Vec::with_capacity(n);
+    let info = &plan.excitation;
+    let periodic = info.kind == ExcitationKind::Multisine && info.period_samples > 0;
+    let report_every = if periodic {
+        info.period_samples
+    } else {
+        (fs.round() as usize).max(1)
+    };
+    let periods_total = if periodic {
+        info.periods + info.transient_periods
+    } else {
+        0
+    };
+    let base_lost = drive.counters().lost;
+    let t0 = Instant::now();
+    let mut reason = StopReason::Complete;
+    let mut stop_cycle = n as u64;
+    let mut last_torque = 0.0;
+    let mut schedule = Schedule::new(period);
+
+    for k in 0..n {
+        if stop.load(Ordering::Relaxed) {
+            reason = StopReason::Interrupted;
+            stop_cycle = k as u64;
+            break;
+        }
+        let now = Instant::now();
+        if let Some(limit) = plan.max_duration {
+            if now.duration_since(t0) >= limit {
+                reason = StopReason::DurationLimit(limit);
+                stop_cycle = k as u64;
+                break;
+            }
+        }
+        let deadline = match plan.pacing {
+            Pacing::Realtime => schedule.next_deadline(),
+            Pacing::Lockstep => now + plan.feedback_timeout,
+        };
+        let fb = match drive.cycle(plan.torque_nm[k], deadline) {
+            Ok(fb) => fb,
+            Err(e) => {
+                reason = StopReason::of_error(&e);
+                stop_cycle = k as u64;
+                break;
+            }
+        };
+        torque.push(fb.torque_setpoint_nm);
+        position.push(fb.position_rad);
+        velocity.push(fb.velocity_rad_s);
+        torque_actual.push(fb.torque_nm);
+        last_torque = fb.torque_setpoint_nm;
+        let lost = fb.counters.lost - base_lost;
+        if lost > plan.max_lost_tpdos {
+            reason = StopReason::FeedbackLost(format!(
+                "{lost} feedback messages (TPDOs) lost, budget {}",
+                plan.max_lost_tpdos
+            ));
+            stop_cycle = k as u64;
+            break;
+        }
+        if fb.velocity_rad_s.abs() > plan.max_speed_rad_s {
+            reason = StopReason::Overspeed {
+                velocity_rad_s: fb.velocity_rad_s,
+                limit_rad_s: plan.max_speed_rad_s,
+            };
+            stop_cycle = k as u64;
+            break;
+        }
+        if (k + 1) % report_every == 0 || k + 1 == n {
+            progress(&Progress {
+                cycle: (k + 1) as u64,
+                total: n as u64,
+                periods_done: if periodic {
+                    (k + 1) / info.period_samples
+                } else {
+                    0
+                },
+                periods_total,
+                elapsed: t0.elapsed(),
+                counters: fb.counters,
+            });
+        }
+        if plan.pacing == Pacing::Realtime {
+            schedule.wait();
+        }
+    }
+    let elapsed = t0.elapsed();
+    let overruns = schedule.overruns;
+
+    // Ramp the torque to zero (not recorded) unless the drive is gone or faulted.
+    let mut ramp_cycles = 0;
+    let mut ramp_error = None;
+    if !reason.drive_failed() {
+        let steps = plan.ramp_cycles.max(1);
+        for i in 1..=steps {
+            let t = last_torque * (1.0 - i as f64 / steps as f64);
+            let deadline = match plan.pacing {
+                Pacing::Realtime => schedule.next_deadline(),
+                Pacing::Lockstep => Instant::now() + plan.feedback_timeout,
+            };
+            match drive.cycle(t, deadline) {
+                Ok(_) => ramp_cycles += 1,
+                Err(e) => {
+                    ramp_error = Some(e.to_string());
+                    break;
+                }
+            }
+            if plan.pacing == Pacing::Realtime {
+                schedule.wait();
+            }
+        }
+    }
+
+    let counters = drive.counters();
+    let rows = torque.len();
+    let end = RecordingEnd {
+        complete: reason == StopReason::Complete,
+        reason: reason.text(),
+        cycle: stop_cycle,
+    };
+    let recording = Recording {
+        time_s: (0..rows).map(|k| k as f64 / fs).collect(),
+        torque_cmd_nm: torque,
+        position_rad: Some(position),
+        velocity_rad_s: Some(velocity),
+        acceleration_rad_s2: None,
+        torque_actual_nm: Some(torque_actual),
+        sample_rate_hz: fs,
+        sidecar: Sidecar {
+            sample_rate_hz: Some(fs),
+            excitation: Some(plan.excitation.clone()),
+            io_delay_samples: Some(0),
+            ended_because: (!end.complete).then(|| end.reason.clone()),
+            end: Some(end.clone()),
+            cycle_counters: Some(CycleCounters {
+                cycles: counters.cycles,
+                missed: counters.missed,
+                late: counters.late,
+                lost: counters.lost,
+                saturated: counters.saturated,
+                malformed: counters.malformed,
+                overruns,
+            }),
+            ..Sidecar::default()
+        },
+    };
+    SweepOutcome {
+        recording,
+        reason,
+        end,
+        counters,
+        elapsed,
+        overruns,
+        ramp_cycles,
+        ramp_error,
+    }
+}

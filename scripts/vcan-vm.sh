@@ -70,9 +70,15 @@ apt_update_once() {
     fi
 }
 
+# Installs what is missing, never removing a package already on the machine (apt's
+# --no-remove). When apt can only install qemu-system-x86 by removing something (a newer
+# qemu-utils from backports breaks bookworm's qemu-system-common), the qemu packages are
+# unpacked into the cache instead ($cache/qemu, used by qemu_bin) and only their
+# libraries and firmware are installed.
 install_packages() {
     local missing=() p
     for p in "${PACKAGES[@]}"; do
+        [ "$p" = qemu-system-x86 ] && qemu_bin >/dev/null 2>&1 && continue
         dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q 'ok installed' ||
             missing+=("$p")
     done
@@ -80,10 +86,69 @@ install_packages() {
     command -v apt-get >/dev/null || die "missing ${missing[*]} and no apt-get"
     [ "$(id -u)" = 0 ] || die "missing ${missing[*]}: run 'scripts/vcan-vm.sh setup' as root"
     log "installing ${missing[*]}"
-    # Only update the lists when apt cannot find the packages with the ones it has.
-    if ! DEBIAN_FRONTEND=noninteractive apt-get install -y -qq "${missing[@]}" >&2; then
-        apt_update_once
-        DEBIAN_FRONTEND=noninteractive apt-get install -y -qq "${missing[@]}" >&2
+    apt_install "${missing[@]}" && return 0
+    printf '%s\n' "${missing[@]}" | grep -qx qemu-system-x86 ||
+        die "apt cannot install ${missing[*]} without removing packages"
+    local rest=()
+    for p in "${missing[@]}"; do [ "$p" = qemu-system-x86 ] || rest+=("$p"); done
+    [ ${#rest[@]} = 0 ] || apt_install "${rest[@]}" ||
+        die "apt cannot install ${rest[*]} without removing packages"
+    private_qemu
+}
+
+# apt-get install that never removes an installed package; the lists are updated only
+# when apt cannot find the packages with the ones it has.
+apt_install() {
+    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-remove "$@" >&2 && return 0
+    apt_update_once
+    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-remove "$@" >&2
+}
+
+# qemu-system-x86 and qemu-system-common unpacked into $cache/qemu (dpkg -x, nothing
+# registered with dpkg); their dependencies installed except the qemu packages
+# themselves.
+private_qemu() {
+    local q="$cache/qemu" dl deps
+    log "qemu-system-x86 conflicts with installed packages: unpacking it into $q"
+    deps=$(apt-cache depends --no-recommends --no-suggests --no-conflicts --no-breaks \
+        --no-replaces --no-enhances qemu-system-x86 qemu-system-common |
+        sed -n 's/^ *\(Pre\)\?Depends: //p' | grep -v '^<' |
+        grep -vx 'qemu-system-common\|qemu-system-x86' | sort -u)
+    # shellcheck disable=SC2086
+    apt_install $deps || die "apt cannot install qemu's libraries without removing packages"
+    dl=$(mktemp -d)
+    (cd "$dl" && apt-get download -qq qemu-system-x86 qemu-system-common 2>/dev/null) ||
+        { apt_update_once && (cd "$dl" && apt-get download -qq qemu-system-x86 qemu-system-common); }
+    rm -rf "$q.tmp"
+    mkdir -p "$q.tmp"
+    for p in "$dl"/*.deb; do dpkg -x "$p" "$q.tmp"; done
+    rm -rf "$dl" "$q"
+    mv "$q.tmp" "$q"
+    qemu_bin >/dev/null || die "no qemu-system-x86_64 in the unpacked packages"
+}
+
+# The qemu binary to run: the installed one, else the one unpacked into the cache.
+qemu_bin() {
+    if command -v qemu-system-x86_64; then
+        return 0
+    elif [ -x "$cache/qemu/usr/bin/qemu-system-x86_64" ]; then
+        echo "$cache/qemu/usr/bin/qemu-system-x86_64"
+    else
+        return 1
+    fi
+}
+
+# Sets QEMU_CMD to the command that runs qemu (installed or unpacked; the unpacked one
+# finds its firmware and modules in the cache first, then in the installed
+# qemu-system-data, seabios and ipxe-qemu). An array, so that `timeout` can run it.
+qemu_cmd() {
+    local bin
+    bin=$(qemu_bin) || die "qemu-system-x86_64 is missing: run 'scripts/vcan-vm.sh setup'"
+    if [ "$bin" = "$cache/qemu/usr/bin/qemu-system-x86_64" ]; then
+        QEMU_CMD=(env "QEMU_MODULE_DIR=$cache/qemu/usr/lib/x86_64-linux-gnu/qemu" "$bin"
+            -L "$cache/qemu/usr/share/qemu" -L /usr/share/qemu -L /usr/share/seabios)
+    else
+        QEMU_CMD=("$bin")
     fi
 }
 
@@ -147,8 +212,9 @@ choose_boot_image() {
         cut -d: -f1 | head -20); do
         tail -c +$((off + 1)) "$k/vmlinuz" |
             { xz -dc --single-stream 2>/dev/null || zstd -qdc 2>/dev/null || gzip -dc 2>/dev/null; } >"$k/vmlinux" || true
+        qemu_cmd
         if [ "$(head -c 4 "$k/vmlinux")" = $'\x7fELF' ] &&
-            echo quit | timeout 60 qemu-system-x86_64 -accel tcg -nodefaults -display none -S \
+            echo quit | timeout 60 "${QEMU_CMD[@]}" -accel tcg -nodefaults -display none -S \
                 -monitor stdio -kernel "$k/vmlinux" >/dev/null 2>&1; then
             echo vmlinux >"$k/boot.tmp"
             break
@@ -297,7 +363,7 @@ setup() {
 ready() {
     [ -f "$cache/kernel/boot" ] && [ -f "$cache/initramfs.cpio.gz" ] &&
         [ "$cache/initramfs.cpio.gz" -nt "${BASH_SOURCE[0]}" ] &&
-        command -v qemu-system-x86_64 >/dev/null
+        qemu_bin >/dev/null
 }
 
 # ------------------------------------------------------------------------------ run --
@@ -373,7 +439,8 @@ run() {
     # when the boot fails, from target/vcan-vm/last-console.log).
     local rc_file="$job/rc" status=0
     set +e
-    timeout -k 10 "$timeout_s" qemu-system-x86_64 \
+    qemu_cmd
+    timeout -k 10 "$timeout_s" "${QEMU_CMD[@]}" \
         -accel tcg -m "$mem" -smp "$smp" \
         -nodefaults -nographic -monitor none -serial stdio -no-reboot \
         -kernel "$cache/kernel/$(cat "$cache/kernel/boot")" -initrd "$job/initrd" \

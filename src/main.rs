@@ -25,6 +25,7 @@ fn init_stderr_log() {
             tracing_subscriber::EnvFilter::try_from_env("FLEXID_LOG")
                 .unwrap_or_else(|_| "warn".into()),
         )
+        .with_ansi(flexid::daemon::logging::stderr_wants_colour())
         .with_writer(std::io::stderr)
         .init();
 }

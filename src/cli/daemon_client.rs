@@ -3,28 +3,13 @@
 //! axis; the event stream drives a progress bar; the results are downloaded into `--out`
 //! and the identified parameters printed as a table. Ctrl-C aborts the sweep on the daemon.
 
-use super::sweep::{ExcitationArg, SweepArgs};
+use super::sweep_args::{ExcitationArg, SweepArgs};
 use super::CliError;
-use clap::Args;
 use futures_util::StreamExt;
 use serde_json::{json, Value};
-use std::path::PathBuf;
 use std::time::Duration;
 
-/// The daemon to use for `flexid sweep`.
-#[derive(Debug, Args, Clone, Default)]
-pub struct DaemonClientArgs {
-    /// Run the sweep through a running daemon at this URL (e.g. `http://127.0.0.1:8642`)
-    /// instead of opening the bus here; `--bus` is then not needed.
-    #[arg(long, value_name = "URL")]
-    pub daemon: Option<String>,
-    /// The daemon's token file (`api.token_file` of its configuration).
-    #[arg(long, default_value = "/etc/flexid/token")]
-    pub token_file: PathBuf,
-    /// The daemon's axis (default: the one axis with `--node`).
-    #[arg(long)]
-    pub axis: Option<String>,
-}
+pub use super::sweep_args::DaemonClientArgs;
 
 /// Files of a finished sweep written into `--out` (the daemon's names).
 const FILES: [&str; 4] = ["recording.csv", "recording.json", "frf.csv", "bode.svg"];

@@ -14,7 +14,9 @@ pub mod diagnose;
 mod excite;
 mod fit_progress;
 pub mod plant;
+mod results;
 pub mod sweep;
+mod sweep_args;
 #[cfg(test)]
 mod sweep_tests;
 

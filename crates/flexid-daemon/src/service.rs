@@ -4,6 +4,7 @@
 use super::backend::{AxisBackend, BackendError};
 use super::config::Config;
 use super::hub::SweepHub;
+use super::job::{AxisOwner, Job, TwoLevel};
 use super::mqtt::Mqtt;
 use super::request::{parse_request, plan_levels, RequestError};
 use super::runner;
@@ -249,7 +250,7 @@ impl Service {
             planned.1
         );
         let svc = self.clone();
-        let job = runner::Job {
+        let job = Job {
             svc: svc.clone(),
             hub,
             files,
@@ -258,7 +259,7 @@ impl Service {
             periods_total: planned.0,
             planned_s: planned.1,
             sample_rate_hz: planned.2,
-            two_level: two_level.then(|| runner::TwoLevel {
+            two_level: two_level.then(|| TwoLevel {
                 axis: ax.clone(),
                 next: plans,
                 levels_nm: status.request.levels_nm.unwrap_or_default(),
@@ -409,5 +410,27 @@ impl Service {
                 }),
             );
         }
+    }
+}
+
+impl AxisOwner for Service {
+    fn mqtt(&self) -> Option<&Mqtt> {
+        self.mqtt.as_ref()
+    }
+
+    fn backend(&self) -> &dyn AxisBackend {
+        self.backend.as_ref()
+    }
+
+    fn store(&self) -> &Store {
+        &self.store
+    }
+
+    fn set_last_result(&self, axis: &str, id: &str) {
+        Service::set_last_result(self, axis, id)
+    }
+
+    fn release(&self, axis: &str) {
+        Service::release(self, axis)
     }
 }

@@ -11,10 +11,10 @@
 //! outcome and the diagnosis) and `ended`. A failed diagnosis is reported; the recordings
 //! are on disk before it starts.
 
-use super::backend::{AbortSignal, Outcome, SweepEvent, SweepPlan};
-use super::config::AxisConfig;
+use super::backend::{AbortSignal, Outcome, SweepEvent};
+use super::follow::{follow, model_message, Follow, Measured};
 use super::hub::SweepHub;
-use super::runner::{follow, model_message, Follow, Job, Measured};
+use super::job::{Job, TwoLevel};
 use super::store::{
     level_dir_name, SweepState, BODE_SVG, DIAGNOSIS_JSON, FRF_CSV, RECORDING_CSV, RESULT_JSON,
 };
@@ -25,18 +25,6 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 use tokio::sync::mpsc;
-
-/// What the runner needs beyond the first level's sweep.
-pub(crate) struct TwoLevel {
-    /// The axis (to start the next level on).
-    pub axis: AxisConfig,
-    /// The plans of the levels still to run (the high one).
-    pub next: Vec<SweepPlan>,
-    /// `[low, high]` peak torques [N m].
-    pub levels_nm: [f64; 2],
-    /// Bodies of the nominal chain for the diagnosis (`None`: the high level's model's).
-    pub masses: Option<usize>,
-}
 
 /// One level as reported in `result.levels`.
 struct LevelDone {
@@ -80,7 +68,7 @@ pub(crate) fn run(mut job: Job, tl: TwoLevel) {
                     excitation: Some(plan.info.clone()),
                     ..Default::default()
                 };
-                match job.svc.backend.start(&tl.axis, plan) {
+                match job.svc.backend().start(&tl.axis, plan) {
                     Ok(h) => (h.events, Some(forward_abort(&job.hub, h.abort))),
                     Err(e) => {
                         stopped = Some((Outcome::Failed, format!("level {n}: {e}")));
@@ -99,7 +87,7 @@ pub(crate) fn run(mut job: Job, tl: TwoLevel) {
         let dir = job.files.dir().join(level_dir_name(n));
         let mut files = match job
             .svc
-            .store
+            .store()
             .begin_in(dir, &level_status, &sidecar_of_level)
         {
             Ok(f) => f,
@@ -220,7 +208,7 @@ pub(crate) fn run(mut job: Job, tl: TwoLevel) {
         let _ = job.files.write_file(RESULT_JSON, text.as_bytes());
     }
     let has_model = high.is_some_and(|h| h.m.has_model);
-    if let (Some(m), Some(mqtt)) = (high.and_then(|h| h.m.model.as_ref()), &job.svc.mqtt) {
+    if let (Some(m), Some(mqtt)) = (high.and_then(|h| h.m.model.as_ref()), job.svc.mqtt()) {
         mqtt.publish(&axis, "model", &model_message(&id, &axis, m));
     }
     let (outcome, reason) = stopped.unwrap_or((Outcome::Completed, "completed".into()));

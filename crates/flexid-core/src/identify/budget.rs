@@ -8,8 +8,8 @@
 //! budget says it was capped. A watcher (the command line's progress bar) reads
 //! [`FitBudget::snapshot`] from another thread.
 
+use super::chain_fit::ChainFit;
 use super::error::IdentifyError;
-use super::fit::ChainFit;
 use crate::model::Chain;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::Arc;

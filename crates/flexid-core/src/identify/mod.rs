@@ -10,6 +10,7 @@
 //! Failures are reported as [`error::IdentifyError`].
 
 mod budget;
+mod chain_fit;
 pub mod detect;
 pub mod error;
 pub mod exact;

@@ -111,6 +111,11 @@ fn main() -> ExitCode {
             tracing_subscriber::EnvFilter::try_from_env("FLEXID_LOG")
                 .unwrap_or_else(|_| "warn".into()),
         )
+        // colour only on a terminal and without NO_COLOR (https://no-color.org)
+        .with_ansi(
+            std::io::IsTerminal::is_terminal(&std::io::stderr())
+                && std::env::var_os("NO_COLOR").is_none_or(|v| v.is_empty()),
+        )
         .with_writer(std::io::stderr)
         .init();
     let cli = match Cli::try_parse() {

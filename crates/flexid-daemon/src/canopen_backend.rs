@@ -11,25 +11,15 @@
 //! see a Bode update per period, exactly as with the simulated backend. The final
 //! recording's sidecar carries the cycle timing (`cycle_timing`: wake-up lateness, late
 //! wake-ups, overruns) beside the exchange counters (late and lost TPDOs).
-use super::backend::{
-    AbortSignal, AxisBackend, BackendError, Outcome, SweepEvent, SweepHandle, SweepPlan,
-};
-use super::canopen_tap::Tap;
-use super::config::{AxisConfig, BusConfig, BusKind, ClockKind};
-use super::period_relay::{spawn_relay, PeriodRows, RelayPlan};
+use super::backend::{AxisBackend, BackendError, SweepHandle, SweepPlan};
+use super::config::{AxisConfig, BusConfig, BusKind};
+use super::drive_sweep::DriveJob;
 use flexid_can::{CanBus, UdpConfig, UdpMulticastBus};
 use flexid_canopen::{bring_up, MasterConfig, ProfileSet};
-use flexid_core::frf::{FrfKind, PeriodicEstimator};
-use flexid_files::recording::CycleTiming;
-use flexid_rt::{clock, RtGranted, RtSetup};
-use flexid_sweep::{admission_check, run_sweep, Pacing, StopReason};
+use flexid_sweep::admission_check;
 use std::collections::HashMap;
-use std::sync::Arc;
-use std::time::Duration;
-use tokio::sync::mpsc;
 
-/// `SCHED_FIFO` priority asked for the cycle thread of a real-time axis.
-pub const CYCLE_FIFO_PRIORITY: u8 = 80;
+pub use super::drive_sweep::CYCLE_FIFO_PRIORITY;
 
 /// Runs sweeps on CiA 402 drives.
 pub struct CanopenBackend {
@@ -74,69 +64,36 @@ impl CanopenBackend {
             axis: axis.name.clone(),
             reason: e.to_string(),
         })?;
-        let pacing = match axis.clock {
-            ClockKind::Monotonic => Pacing::Realtime,
-            ClockKind::Simulated => Pacing::Lockstep,
-        };
-        let info = plan.info.clone();
-        // every excitation the daemon plans repeats per period (multisine, chirp): the relay
-        // cuts the published rows into periods whatever the sweep loop's reporting step
-        let periodic = info.period_samples > 0;
-        let estimator = if periodic {
-            Some(
-                PeriodicEstimator::new(
-                    info.period_samples,
-                    &info.excited_lines,
-                    plan.sample_rate_hz,
-                    FrfKind::DifferencedVelocity,
-                )
-                .map_err(|e| BackendError::Plan {
-                    axis: axis.name.clone(),
-                    reason: e.to_string(),
-                })?
-                .with_transient_periods(info.transient_periods),
-            )
-        } else {
-            None
-        };
-        let rows_total = plan.torque_nm.len();
-        // progress calls: one per period (multisine) or per second (other excitations)
-        let blocks = rows_total / info.period_samples.max(1)
-            + (rows_total as f64 / plan.sample_rate_hz).ceil() as usize
-            + 2;
-        let mut sp =
-            flexid_sweep::SweepPlan::new(plan.sample_rate_hz, plan.torque_nm, plan.info, pacing);
-        sp.max_speed_rad_s = axis.limits.max_speed_rad_s;
-        if let Some(n) = axis.limits.max_lost_tpdos {
-            sp.max_lost_tpdos = n;
-        }
-        sp.max_duration = Some(Duration::from_secs_f64(
-            axis.limits.max_sweep_s.max(sp.duration_s()) + 5.0,
-        ));
-        let (tx, rx) = mpsc::channel(256);
-        let abort = AbortSignal::default();
-        let job = Job {
-            axis: axis.clone(),
-            bus,
-            plan: sp,
-            abort: abort.clone(),
-            tx,
-            profiles: self.profiles.clone(),
-            rows: Arc::new(PeriodRows::new(rows_total, blocks)),
-            relay: Some(RelayPlan {
-                period_samples: if periodic { info.period_samples } else { 0 },
-                sample_rate_hz: plan.sample_rate_hz,
-                estimator,
-            }),
-        };
-        std::thread::Builder::new()
-            .name(format!("cycle-{}", axis.name))
-            .spawn(move || job.run(open))
-            .map_err(|e| BackendError::Unavailable {
-                axis: axis.name.clone(),
-                reason: format!("cannot start the cycle thread: {e}"),
-            })?;
-        Ok(SweepHandle { events: rx, abort })
+        let (mut job, handle) = DriveJob::plan(axis, plan)?;
+        let profiles = self.profiles.clone();
+        DriveJob::spawn(format!("cycle-{}", axis.name), &axis.name, move || {
+            let source = format!(
+                "flexid daemon: axis {} (node {} on bus {})",
+                job.axis.name, job.axis.node, bus.name
+            );
+            let r = open(&bus).and_then(|b| {
+                let cfg = MasterConfig {
+                    node: job.axis.node,
+                    cycle_period: job.plan.period(),
+                    bitrate: bus.bitrate,
+                    ..MasterConfig::for_node(job.axis.node)
+                };
+                let drive = bring_up(b, cfg, &profiles).map_err(|e| format!("bring-up: {e}"))?;
+                drive.enable().map_err(|e| format!("enable: {e}"))
+            });
+            match r {
+                Err(reason) => job.failed(reason),
+                Ok(drive) => {
+                    let axis = job.axis.name.clone();
+                    job.run_on(drive, source, |d| {
+                        if let Err(e) = d.disable() {
+                            tracing::warn!("axis {axis}: disabling the drive: {e}");
+                        }
+                    })
+                }
+            }
+        })?;
+        Ok(handle)
     }
 }
 
@@ -163,141 +120,4 @@ pub fn open_udp(bus: &BusConfig) -> Result<UdpMulticastBus, String> {
         cfg.port = p;
     }
     UdpMulticastBus::open(cfg).map_err(|e| format!("bus {}: {e}", bus.name))
-}
-
-struct Job {
-    axis: AxisConfig,
-    bus: BusConfig,
-    plan: flexid_sweep::SweepPlan,
-    abort: AbortSignal,
-    tx: mpsc::Sender<SweepEvent>,
-    profiles: ProfileSet,
-    rows: Arc<PeriodRows>,
-    relay: Option<RelayPlan>,
-}
-
-impl Job {
-    fn run<B: CanBus, F: FnOnce(&BusConfig) -> Result<B, String>>(mut self, open: F) {
-        let r = open(&self.bus).and_then(|b| self.measure(b));
-        if let Err(reason) = r {
-            let _ = self.tx.blocking_send(SweepEvent::Ended {
-                outcome: Outcome::Failed,
-                reason,
-                recording: None,
-            });
-        }
-    }
-
-    /// Bring-up and enable errors are returned (the motor has not moved); after enable the
-    /// outcome is always sent.
-    fn measure<B: CanBus>(&mut self, bus: B) -> Result<(), String> {
-        let cfg = MasterConfig {
-            node: self.axis.node,
-            cycle_period: self.plan.period(),
-            bitrate: self.bus.bitrate,
-            ..MasterConfig::for_node(self.axis.node)
-        };
-        let drive = bring_up(bus, cfg, &self.profiles).map_err(|e| format!("bring-up: {e}"))?;
-        let mut drive = drive.enable().map_err(|e| format!("enable: {e}"))?;
-        let realtime = self.plan.pacing == Pacing::Realtime;
-        let relay = match self.relay.take().map(|plan| {
-            spawn_relay(
-                &format!("relay-{}", self.axis.name),
-                self.rows.clone(),
-                plan,
-                self.tx.clone(),
-            )
-        }) {
-            Some(Ok(h)) => Some(h),
-            Some(Err(e)) => {
-                tracing::warn!(
-                    "axis {}: no live periods (relay thread: {e}); rows are written at the end",
-                    self.axis.name
-                );
-                None
-            }
-            None => None,
-        };
-        // after the relay is spawned: it must not inherit the cycle thread's SCHED_FIFO
-        let granted = if realtime {
-            RtSetup::realtime(CYCLE_FIFO_PRIORITY).apply()
-        } else {
-            RtGranted::default()
-        };
-        let rows = self.rows.clone();
-        let relay_thread = relay.as_ref().map(|h| h.thread().clone());
-        let mut progress = |p: &flexid_sweep::Progress| {
-            rows.publish(
-                p.cycle as usize,
-                p.counters.late,
-                p.counters.lost,
-                clock::now_ns(),
-            );
-            if let Some(t) = &relay_thread {
-                t.unpark();
-            }
-        };
-        let mut tap = Tap::new(
-            &mut drive,
-            &self.rows,
-            self.abort.flag(),
-            self.axis.limits.position_window_rad,
-            realtime,
-        );
-        let outcome = run_sweep(&mut tap, &self.plan, self.abort.flag(), &mut progress);
-        let window_trip = tap.window_trip_rad;
-        let stats = std::mem::replace(&mut tap.stats, flexid_rt::TimingStats::new(1));
-        drop(tap);
-        if let Err(e) = drive.disable() {
-            tracing::warn!("axis {}: disabling the drive: {e}", self.axis.name);
-        }
-        self.rows.finish();
-        if let Some(h) = relay {
-            h.thread().unpark();
-            let _ = h.join();
-        }
-        let (kind, reason) = match (&outcome.reason, window_trip) {
-            (StopReason::Complete, _) => (Outcome::Completed, "completed".to_string()),
-            (StopReason::Interrupted, Some(at)) => (
-                Outcome::Failed,
-                format!(
-                    "position window: {at:+.4} rad from the start, beyond +-{} rad",
-                    self.axis.limits.position_window_rad
-                ),
-            ),
-            (StopReason::Interrupted, None) => (
-                Outcome::Aborted,
-                self.abort.reason().unwrap_or_else(|| "abort".into()),
-            ),
-            (other, _) => (Outcome::Failed, other.text()),
-        };
-        let mut recording = outcome.recording;
-        let sc = &mut recording.sidecar;
-        if let Some(end) = sc.end.as_mut() {
-            end.reason = reason.clone();
-        }
-        if kind != Outcome::Completed {
-            sc.ended_because = Some(reason.clone());
-        }
-        sc.source = Some(format!(
-            "flexid daemon: axis {} (node {} on bus {})",
-            self.axis.name, self.axis.node, self.bus.name
-        ));
-        sc.cycle_timing = Some(CycleTiming {
-            pacing: self.plan.pacing.name().into(),
-            rate_hz: self.plan.cycle_hz,
-            lateness: realtime.then(|| stats.lateness.summary()),
-            late_threshold_ns: stats.late_threshold_ns,
-            late_wakeups: stats.late_wakeups,
-            overruns: outcome.overruns,
-            fifo_priority: granted.fifo_priority,
-            memory_locked: granted.memory_locked,
-        });
-        let _ = self.tx.blocking_send(SweepEvent::Ended {
-            outcome: kind,
-            reason,
-            recording: Some(recording),
-        });
-        Ok(())
-    }
 }

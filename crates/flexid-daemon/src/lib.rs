@@ -23,6 +23,7 @@ pub mod backend;
 pub mod canopen_backend;
 mod canopen_tap;
 pub mod config;
+mod drive_sweep;
 mod follow;
 pub mod hub;
 mod job;

@@ -1,9 +1,11 @@
-//! A CAN-free drive: the exact ZOH simulation of a chain behind [`CyclicDrive`], for tests
-//! of the sweep logic and for the demo when no bus can be used.
+//! A CAN-free drive: a physics model (by default the exact ZOH simulation of a chain)
+//! behind [`CyclicDrive`], for the daemon's simulated axes, the tests of the sweep logic
+//! and the demo when no bus can be used.
 
 use flexid_canopen::cia402::State;
 use flexid_canopen::{Counters, CyclicDrive, Feedback};
-use flexid_core::model::{Chain, ModelError, StateSpace};
+use flexid_core::model::{Chain, ModelError};
+use flexid_core::plant::physics::{LinearChain, Physics, PhysicsError};
 use std::time::{Duration, Instant};
 
 /// A fault injected into a [`SimulatedDrive`] (an EMCY as a real drive would send).
@@ -18,17 +20,13 @@ pub struct SimulatedFault {
     pub text: &'static str,
 }
 
-/// An enabled drive in CST whose axis is `chain`, simulated exactly (zero-order hold, as
-/// `flexid_core::sim`): the feedback of cycle k is the state before torque k acts; the torque
-/// actual is the one held during the previous cycle. No allocation per cycle.
-#[derive(Debug, Clone)]
+/// An enabled drive in CST in front of a [`Physics`] model: by default the exact ZOH
+/// simulation of a chain (as `flexid_core::sim`), or any model ([`SimulatedDrive::on`]:
+/// the nonlinear plant, a disturbance torque, ...). The feedback of cycle k is the state
+/// before torque k acts; the torque actual is the one held during the previous cycle. No
+/// allocation per cycle.
 pub struct SimulatedDrive {
-    m: usize,
-    n: usize,
-    ad: Vec<f64>,
-    bd: Vec<f64>,
-    x: Vec<f64>,
-    next: Vec<f64>,
+    physics: Box<dyn Physics>,
     period: Duration,
     rated_torque_nm: f64,
     increments_per_rev: Option<f64>,
@@ -37,37 +35,42 @@ pub struct SimulatedDrive {
     fault_at: Option<u64>,
 }
 
+impl std::fmt::Debug for SimulatedDrive {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("SimulatedDrive")
+            .field("period", &self.period)
+            .field("increments_per_rev", &self.increments_per_rev)
+            .field("counters", &self.counters)
+            .finish_non_exhaustive()
+    }
+}
+
 impl SimulatedDrive {
     /// A drive on `chain` cycling at `cycle_hz`, at rest, rated torque 1 N m, exact
     /// position (no encoder quantisation).
     pub fn new(chain: &Chain, cycle_hz: f64) -> Result<Self, ModelError> {
-        chain.validate()?;
         if !(cycle_hz.is_finite() && cycle_hz > 0.0) {
             return Err(ModelError::SampleRate { fs_hz: cycle_hz });
         }
-        let n = chain.masses();
-        let m = 2 * n;
-        let d = StateSpace::of(chain).discretize(1.0 / cycle_hz);
-        let mut ad = vec![0.0; m * m];
-        for i in 0..m {
-            for j in 0..m {
-                ad[i * m + j] = d.ad[(i, j)];
-            }
-        }
-        Ok(SimulatedDrive {
-            m,
-            n,
-            ad,
-            bd: d.bd.iter().copied().collect(),
-            x: vec![0.0; m],
-            next: vec![0.0; m],
+        let physics = LinearChain::new(chain, cycle_hz).map_err(|e| match e {
+            PhysicsError::Chain(m) => m,
+            _ => ModelError::SampleRate { fs_hz: cycle_hz },
+        })?;
+        Ok(Self::on(Box::new(physics), cycle_hz))
+    }
+
+    /// A drive in front of `physics`, stepped at `cycle_hz` [Hz] (the rate `physics` was
+    /// built for), rated torque 1 N m, the position as `physics` samples it.
+    pub fn on(physics: Box<dyn Physics>, cycle_hz: f64) -> Self {
+        SimulatedDrive {
+            physics,
             period: Duration::from_secs_f64(1.0 / cycle_hz),
             rated_torque_nm: 1.0,
             increments_per_rev: None,
             last_torque: 0.0,
             counters: Counters::default(),
             fault_at: None,
-        })
+        }
     }
 
     /// Quantise the position as an encoder with this many increments per revolution.
@@ -97,22 +100,14 @@ impl CyclicDrive for SimulatedDrive {
             });
         }
         let sync_time = Instant::now();
-        let mut position = self.x[0];
+        let sample = self.physics.sample();
+        let mut position = sample.position_rad;
         if let Some(inc) = self.increments_per_rev {
             let q = std::f64::consts::TAU / inc;
             position = (position / q).round() * q;
         }
-        let velocity = self.x[self.n];
-        let m = self.m;
-        for i in 0..m {
-            let row = &self.ad[i * m..(i + 1) * m];
-            let mut acc = self.bd[i] * torque_nm;
-            for (a, xj) in row.iter().zip(&self.x) {
-                acc += a * xj;
-            }
-            self.next[i] = acc;
-        }
-        std::mem::swap(&mut self.x, &mut self.next);
+        let velocity = sample.velocity_rad_s;
+        self.physics.step(torque_nm);
         let actual = self.last_torque;
         self.last_torque = torque_nm;
         self.counters.cycles += 1;

@@ -14,6 +14,7 @@
 mod dynamics;
 mod error;
 mod file;
+pub mod physics;
 mod sim;
 mod spec;
 

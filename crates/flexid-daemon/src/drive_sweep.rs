@@ -1,0 +1,224 @@
+//! One sweep on an enabled drive, the same for every backend: the sweep library's loop
+//! ([`flexid_sweep::run_sweep`]) over any [`CyclicDrive`] (a CiA 402 drive on a bus, or
+//! the CAN-free simulated drive), wrapped in a [`Tap`] that stores every row into a
+//! pre-allocated [`PeriodRows`] and enforces the position window; after every period the
+//! sweep's progress hook publishes the rows and a relay thread ([`spawn_relay`]) sends
+//! them with the FRF estimate so far. The final recording's sidecar carries the cycle
+//! timing beside the exchange counters.
+
+use super::backend::{AbortSignal, BackendError, Outcome, SweepEvent, SweepHandle, SweepPlan};
+use super::canopen_tap::Tap;
+use super::config::{AxisConfig, ClockKind};
+use super::period_relay::{spawn_relay, PeriodRows, RelayPlan};
+use flexid_canopen::CyclicDrive;
+use flexid_core::frf::{FrfKind, PeriodicEstimator};
+use flexid_files::recording::CycleTiming;
+use flexid_rt::{clock, RtGranted, RtSetup};
+use flexid_sweep::{run_sweep, Pacing, StopReason};
+use std::sync::Arc;
+use std::time::Duration;
+use tokio::sync::mpsc;
+
+/// `SCHED_FIFO` priority asked for the cycle thread of a real-time axis.
+pub const CYCLE_FIFO_PRIORITY: u8 = 80;
+
+/// A planned sweep on one axis, waiting for its drive.
+pub(crate) struct DriveJob {
+    pub axis: AxisConfig,
+    pub plan: flexid_sweep::SweepPlan,
+    pub abort: AbortSignal,
+    pub tx: mpsc::Sender<SweepEvent>,
+    rows: Arc<PeriodRows>,
+    relay: Option<RelayPlan>,
+}
+
+impl DriveJob {
+    /// The sweep of `plan` on `axis` (pacing from its clock, its limits), and the handle
+    /// the service follows it by.
+    pub fn plan(axis: &AxisConfig, plan: SweepPlan) -> Result<(Self, SweepHandle), BackendError> {
+        let pacing = match axis.clock {
+            ClockKind::Monotonic => Pacing::Realtime,
+            ClockKind::Simulated => Pacing::Lockstep,
+        };
+        let info = plan.info.clone();
+        // every excitation the daemon plans repeats per period (multisine, chirp): the relay
+        // cuts the published rows into periods whatever the sweep loop's reporting step
+        let periodic = info.period_samples > 0;
+        let estimator = if periodic {
+            Some(
+                PeriodicEstimator::new(
+                    info.period_samples,
+                    &info.excited_lines,
+                    plan.sample_rate_hz,
+                    FrfKind::DifferencedVelocity,
+                )
+                .map_err(|e| BackendError::Plan {
+                    axis: axis.name.clone(),
+                    reason: e.to_string(),
+                })?
+                .with_transient_periods(info.transient_periods),
+            )
+        } else {
+            None
+        };
+        let rows_total = plan.torque_nm.len();
+        // progress calls: one per period (multisine) or per second (other excitations)
+        let blocks = rows_total / info.period_samples.max(1)
+            + (rows_total as f64 / plan.sample_rate_hz).ceil() as usize
+            + 2;
+        let mut sp =
+            flexid_sweep::SweepPlan::new(plan.sample_rate_hz, plan.torque_nm, plan.info, pacing);
+        sp.max_speed_rad_s = axis.limits.max_speed_rad_s;
+        if let Some(n) = axis.limits.max_lost_tpdos {
+            sp.max_lost_tpdos = n;
+        }
+        sp.max_duration = Some(Duration::from_secs_f64(
+            axis.limits.max_sweep_s.max(sp.duration_s()) + 5.0,
+        ));
+        let (tx, rx) = mpsc::channel(256);
+        let abort = AbortSignal::default();
+        let job = DriveJob {
+            axis: axis.clone(),
+            plan: sp,
+            abort: abort.clone(),
+            tx,
+            rows: Arc::new(PeriodRows::new(rows_total, blocks)),
+            relay: Some(RelayPlan {
+                period_samples: if periodic { info.period_samples } else { 0 },
+                sample_rate_hz: plan.sample_rate_hz,
+                estimator,
+            }),
+        };
+        Ok((job, SweepHandle { events: rx, abort }))
+    }
+
+    /// Runs `job` on a thread of its own named `name` (never on the async runtime).
+    pub fn spawn(
+        name: String,
+        axis: &str,
+        job: impl FnOnce() + Send + 'static,
+    ) -> Result<(), BackendError> {
+        std::thread::Builder::new()
+            .name(name)
+            .spawn(job)
+            .map(|_| ())
+            .map_err(|e| BackendError::Unavailable {
+                axis: axis.into(),
+                reason: format!("cannot start the cycle thread: {e}"),
+            })
+    }
+
+    /// The sweep ended before the motor moved (no drive, bring-up failed).
+    pub fn failed(&self, reason: String) {
+        let _ = self.tx.blocking_send(SweepEvent::Ended {
+            outcome: Outcome::Failed,
+            reason,
+            recording: None,
+        });
+    }
+
+    /// Runs the sweep loop on the enabled `drive`, hands it to `release` when the loop has
+    /// ended (the CANopen drive is disabled there), and sends the outcome with the
+    /// recording; `source` names the drive in the sidecar.
+    pub fn run_on<D: CyclicDrive>(
+        &mut self,
+        mut drive: D,
+        source: String,
+        release: impl FnOnce(D),
+    ) {
+        let realtime = self.plan.pacing == Pacing::Realtime;
+        let relay = match self.relay.take().map(|plan| {
+            spawn_relay(
+                &format!("relay-{}", self.axis.name),
+                self.rows.clone(),
+                plan,
+                self.tx.clone(),
+            )
+        }) {
+            Some(Ok(h)) => Some(h),
+            Some(Err(e)) => {
+                tracing::warn!(
+                    "axis {}: no live periods (relay thread: {e}); rows are written at the end",
+                    self.axis.name
+                );
+                None
+            }
+            None => None,
+        };
+        // after the relay is spawned: it must not inherit the cycle thread's SCHED_FIFO
+        let granted = if realtime {
+            RtSetup::realtime(CYCLE_FIFO_PRIORITY).apply()
+        } else {
+            RtGranted::default()
+        };
+        let rows = self.rows.clone();
+        let relay_thread = relay.as_ref().map(|h| h.thread().clone());
+        let mut progress = |p: &flexid_sweep::Progress| {
+            rows.publish(
+                p.cycle as usize,
+                p.counters.late,
+                p.counters.lost,
+                clock::now_ns(),
+            );
+            if let Some(t) = &relay_thread {
+                t.unpark();
+            }
+        };
+        let mut tap = Tap::new(
+            &mut drive,
+            &self.rows,
+            self.abort.flag(),
+            self.axis.limits.position_window_rad,
+            realtime,
+        );
+        let outcome = run_sweep(&mut tap, &self.plan, self.abort.flag(), &mut progress);
+        let window_trip = tap.window_trip_rad;
+        let stats = std::mem::replace(&mut tap.stats, flexid_rt::TimingStats::new(1));
+        drop(tap);
+        release(drive);
+        self.rows.finish();
+        if let Some(h) = relay {
+            h.thread().unpark();
+            let _ = h.join();
+        }
+        let (kind, reason) = match (&outcome.reason, window_trip) {
+            (StopReason::Complete, _) => (Outcome::Completed, "completed".to_string()),
+            (StopReason::Interrupted, Some(at)) => (
+                Outcome::Failed,
+                format!(
+                    "position window: {at:+.4} rad from the start, beyond +-{} rad",
+                    self.axis.limits.position_window_rad
+                ),
+            ),
+            (StopReason::Interrupted, None) => (
+                Outcome::Aborted,
+                self.abort.reason().unwrap_or_else(|| "abort".into()),
+            ),
+            (other, _) => (Outcome::Failed, other.text()),
+        };
+        let mut recording = outcome.recording;
+        let sc = &mut recording.sidecar;
+        if let Some(end) = sc.end.as_mut() {
+            end.reason = reason.clone();
+        }
+        if kind != Outcome::Completed {
+            sc.ended_because = Some(reason.clone());
+        }
+        sc.source = Some(source);
+        sc.cycle_timing = Some(CycleTiming {
+            pacing: self.plan.pacing.name().into(),
+            rate_hz: self.plan.cycle_hz,
+            lateness: realtime.then(|| stats.lateness.summary()),
+            late_threshold_ns: stats.late_threshold_ns,
+            late_wakeups: stats.late_wakeups,
+            overruns: outcome.overruns,
+            fifo_priority: granted.fifo_priority,
+            memory_locked: granted.memory_locked,
+        });
+        let _ = self.tx.blocking_send(SweepEvent::Ended {
+            outcome: kind,
+            reason,
+            recording: Some(recording),
+        });
+    }
+}

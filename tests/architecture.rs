@@ -23,7 +23,7 @@ const LAYERS: &[(&str, &str, &[&str])] = &[
     (
         "flexid-vdrive",
         "drivers/flexid-vdrive",
-        &["flexid-core", "flexid-rt", "flexid-can"],
+        &["flexid-core", "flexid-rt", "flexid-can", "flexid-canopen"],
     ),
     (
         "flexid-sweep",

@@ -39,39 +39,9 @@ pub mod mode {
     }
 }
 
-/// A state of the CiA 402 power drive system state machine.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum State {
-    NotReadyToSwitchOn,
-    SwitchOnDisabled,
-    ReadyToSwitchOn,
-    SwitchedOn,
-    OperationEnabled,
-    QuickStopActive,
-    FaultReactionActive,
-    Fault,
-}
-
-impl State {
-    /// The statusword bits 0-3, 5, 6 of this state.
-    pub const fn statusword(self) -> u16 {
-        match self {
-            State::NotReadyToSwitchOn => 0x0000,
-            State::SwitchOnDisabled => 0x0040,
-            State::ReadyToSwitchOn => 0x0021,
-            State::SwitchedOn => 0x0023,
-            State::OperationEnabled => 0x0027,
-            State::QuickStopActive => 0x0007,
-            State::FaultReactionActive => 0x000F,
-            State::Fault => 0x0008,
-        }
-    }
-
-    /// Whether the power stage produces torque in this state.
-    pub const fn torque_enabled(self) -> bool {
-        matches!(self, State::OperationEnabled | State::QuickStopActive)
-    }
-}
+/// A state of the CiA 402 power drive system state machine: the one type the master
+/// (`flexid-canopen`) reads from the statusword and this drive writes into it.
+pub use flexid_canopen::cia402::State;
 
 /// A device control command decoded from the controlword (bits 0-3, 7).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

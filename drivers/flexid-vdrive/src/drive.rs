@@ -550,7 +550,7 @@ impl<P: Physics> VirtualDrive<P> {
 
     fn publish_status(&mut self) {
         let state = self.dc.state();
-        let mut sw = state.statusword();
+        let mut sw = state.status_bits();
         if self.limited && state == State::OperationEnabled {
             sw |= cia402::SW_INTERNAL_LIMIT;
         }

@@ -6,6 +6,7 @@
 //! bodies; plain code, no I/O. The CLI is `flexid diagnose`.
 
 pub mod distortion;
+mod effect;
 pub mod effects;
 pub mod json;
 pub mod lm;
@@ -20,22 +21,23 @@ use crate::analysis::{analyze, estimate_frf, AnalysisOptions};
 use crate::frf::{FrfKind, NonExcitedLevels};
 use crate::recording::Recording;
 use distortion::{LevelChange, LevelDistortion};
+pub use effect::Effect;
 use effects::{EffectFit, Lin, Target};
 use localise::Band;
 use lti::LinExt;
 use num_complex::Complex64;
 
-/// The candidate effects, in the order they are reported when tied.
-pub const EFFECTS: [&str; 8] = [
-    "none",
-    "coulomb_friction",
-    "backlash",
-    "hardening_stiffness",
-    "time_delay",
-    "current_loop",
-    "unmodelled_mode",
-    "gravity",
-];
+/// The candidate effects' wire names, in the order they are reported when tied (see
+/// [`Effect::ALL`]).
+pub const EFFECTS: [&str; 8] = {
+    let mut names = [""; 8];
+    let mut i = 0;
+    while i < 8 {
+        names[i] = Effect::ALL[i].name();
+        i += 1;
+    }
+    names
+};
 
 /// Errors of [`diagnose`].
 #[derive(Debug, thiserror::Error)]
@@ -288,7 +290,7 @@ pub struct ResidualKind {
 /// The whole diagnosis.
 #[derive(Debug, Clone)]
 pub struct Diagnosis {
-    pub verdict: &'static str,
+    pub verdict: Effect,
     pub masses: usize,
     pub nominal: EffectFit,
     /// Candidates ranked (best first), with scores.
@@ -390,28 +392,75 @@ pub fn diagnose(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Diagnosis,
     let mut stage = StageClock::start(opts.cpu_clock);
     let data = prepare(recs, opts)?;
     stage.lap("prepare");
-    let mut notes = Vec::new();
     let n = opts.masses.max(1);
-    let top = (0..data.levels.len())
+    let nom_lin = fit_nominal(&data, n, opts.band_hz)?;
+    let nominal = effects::finish_linear(&data, Effect::None, nom_lin.clone(), vec![], 0);
+    stage.lap("nominal");
+
+    // what the residual is made of
+    let residual = residual_kind(&data, &nominal);
+    stage.lap("residual");
+
+    let mut candidates = Candidates::new(&mut stage);
+    fit_linear_candidates(&data, &nom_lin, &mut candidates);
+    let ground_as_gravity =
+        fit_extra_mode(&data, &nominal, &nom_lin, n, opts.band_hz, &mut candidates);
+    fit_amplitude_candidates(
+        &data,
+        &nom_lin,
+        &residual,
+        opts.force_nonlinear,
+        &mut candidates,
+    );
+    let (mut fits, notes) = (candidates.fits, candidates.notes);
+    keep_better_gravity(&mut fits, ground_as_gravity);
+
+    let (ranking, win) = rank::rank(&data, &nominal, &fits, &residual);
+    let winner = win.map(|i| fits[i].clone());
+    let verdict = winner.as_ref().map(|w| w.effect).unwrap_or(Effect::None);
+    let gap = gap_of(&data, &nominal, winner.as_ref());
+    stage.lap("rank");
+    Ok(Diagnosis {
+        verdict,
+        masses: n,
+        nominal,
+        ranking,
+        winner,
+        gap,
+        residual,
+        data,
+        notes,
+        seconds: t0.elapsed().as_secs_f64(),
+        stage_cpu_s: stage.stages,
+    })
+}
+
+/// The level with the highest torque RMS.
+fn top_level(data: &Data) -> usize {
+    (0..data.levels.len())
         .max_by(|&a, &b| {
             data.levels[a]
                 .torque_rms
                 .total_cmp(&data.levels[b].torque_rms)
         })
-        .unwrap();
-    // the nominal start: the pipeline's own identification, highest level first
+        .unwrap()
+}
+
+/// The nominal chain of `n` bodies, fitted jointly to every level. Every level's
+/// identification is a start, highest level first (a strongly nonlinear level can make its
+/// own one fail, e.g. a spring hardened far beyond its small-signal value); the joint fit
+/// with the lowest chi² over all levels is the nominal model. When no level gives `n`
+/// bodies: one body less, plus one appended near the top of the band.
+fn fit_nominal(data: &Data, n: usize, band: Option<[f64; 2]>) -> Result<LinExt, DiagnoseError> {
     let mut order: Vec<usize> = (0..data.levels.len()).collect();
     order.sort_by(|&a, &b| {
         data.levels[b]
             .torque_rms
             .total_cmp(&data.levels[a].torque_rms)
     });
-    // every level's identification is a start (a strongly nonlinear level can make its
-    // own one fail, e.g. a spring hardened far beyond its small-signal value); the joint
-    // fit with the lowest chi² over all levels is the nominal model
-    let fit_nominal = |start: crate::model::Chain| {
+    let fit_joint = |start: crate::model::Chain| {
         effects::fit_linear(
-            &data,
+            data,
             &data.targets,
             Lin::None,
             &LinExt::nominal(start.clone()),
@@ -422,10 +471,10 @@ pub fn diagnose(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Diagnosis,
     };
     let mut best: Option<(LinExt, f64)> = None;
     for &i in &order {
-        let Some(start) = nominal_start(&data.levels[i].rec, n, opts.band_hz) else {
+        let Some(start) = nominal_start(&data.levels[i].rec, n, band) else {
             continue;
         };
-        let lin = fit_nominal(start);
+        let lin = fit_joint(start);
         let chi2 = data.chi2(&effects::model_on(
             &lin,
             data.fs,
@@ -440,66 +489,90 @@ pub fn diagnose(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Diagnosis,
             break;
         }
     }
-    let nom_lin = match best {
-        Some((lin, _)) => lin,
-        None => {
-            // fewer detected pairs than the model has: one body less, plus one appended
-            // near the top of the band
-            let start = n
-                .checked_sub(1)
-                .filter(|&m| m > 0)
-                .and_then(|m| nominal_start(&data.levels[top].rec, m, opts.band_hz))
-                .and_then(|c| {
-                    effects::mode::starts(&c, &[0.5 * data.f_max()], &[])
-                        .into_iter()
-                        .nth(1)
-                })
-                .ok_or(DiagnoseError::NoNominal(top, n))?;
-            fit_nominal(start)
-        }
-    };
-    let nominal = effects::finish_linear(&data, "none", nom_lin.clone(), vec![], 0);
-    stage.lap("nominal");
+    if let Some((lin, _)) = best {
+        return Ok(lin);
+    }
+    let top = top_level(data);
+    let start = n
+        .checked_sub(1)
+        .filter(|&m| m > 0)
+        .and_then(|m| nominal_start(&data.levels[top].rec, m, band))
+        .and_then(|c| {
+            effects::mode::starts(&c, &[0.5 * data.f_max()], &[])
+                .into_iter()
+                .nth(1)
+        })
+        .ok_or(DiagnoseError::NoNominal(top, n))?;
+    Ok(fit_joint(start))
+}
 
-    // what the residual is made of
-    let residual = residual_kind(&data, &nominal);
-    stage.lap("residual");
+/// The candidates fitted so far, with a note (wall time, or "no fit") per candidate and
+/// the CPU time of each as a stage.
+struct Candidates<'a> {
+    fits: Vec<EffectFit>,
+    notes: Vec<String>,
+    clock: std::time::Instant,
+    stage: &'a mut StageClock,
+}
 
-    let mut fits: Vec<EffectFit> = Vec::new();
-    let mut clock = std::time::Instant::now();
-    let mut push = |fits: &mut Vec<EffectFit>,
-                    e: Option<EffectFit>,
-                    name: &'static str,
-                    notes: &mut Vec<String>| {
-        notes.push(format!("{name}: {:.2} s", clock.elapsed().as_secs_f64()));
-        stage.lap(name);
-        clock = std::time::Instant::now();
-        match e {
-            Some(e) => fits.push(e),
-            None => notes.push(format!("{name}: no fit")),
+impl<'a> Candidates<'a> {
+    fn new(stage: &'a mut StageClock) -> Self {
+        Candidates {
+            fits: Vec::new(),
+            notes: Vec::new(),
+            clock: std::time::Instant::now(),
+            stage,
         }
-    };
-    push(
-        &mut fits,
-        effects::delay::fit(&data, &nom_lin),
-        "time_delay",
-        &mut notes,
+    }
+
+    /// Record the fit of `effect` (`None`: it could not be fitted).
+    fn push(&mut self, fit: Option<EffectFit>, effect: Effect) {
+        self.notes.push(format!(
+            "{effect}: {:.2} s",
+            self.clock.elapsed().as_secs_f64()
+        ));
+        self.stage.lap(effect.name());
+        self.clock = std::time::Instant::now();
+        match fit {
+            Some(f) => self.fits.push(f),
+            None => self.notes.push(format!("{effect}: no fit")),
+        }
+    }
+
+    /// Whether a candidate already leaves only noise.
+    fn explained(&self, data: &Data) -> bool {
+        self.fits
+            .iter()
+            .any(|f| f.chi2 < rank::NOISE_CHI2 * data.lines() as f64)
+    }
+}
+
+/// The linear candidates that extend the nominal chain's transfer function: time delay,
+/// current loop, gravity.
+fn fit_linear_candidates(data: &Data, nom_lin: &LinExt, c: &mut Candidates) {
+    c.push(effects::delay::fit(data, nom_lin), Effect::TimeDelay);
+    c.push(
+        effects::current_loop::fit(data, nom_lin),
+        Effect::CurrentLoop,
     );
-    push(
-        &mut fits,
-        effects::current_loop::fit(&data, &nom_lin),
-        "current_loop",
-        &mut notes,
-    );
-    push(
-        &mut fits,
-        effects::gravity::fit(&data, &nom_lin),
-        "gravity",
-        &mut notes,
-    );
+    c.push(effects::gravity::fit(data, nom_lin), Effect::Gravity);
+}
+
+/// The extra body (an unmodelled mode), started from the identification with one body more
+/// and from the most significant localised bands of the nominal model's gap. Returns the
+/// gravity refit when the best "extra body" is far heavier than the rest of the axis:
+/// that is the ground, its spring a restoring stiffness on the last body.
+fn fit_extra_mode(
+    data: &Data,
+    nominal: &EffectFit,
+    nom_lin: &LinExt,
+    n: usize,
+    band: Option<[f64; 2]>,
+    c: &mut Candidates,
+) -> Option<EffectFit> {
     let mut extra: Vec<crate::model::Chain> = Vec::new();
-    if let Some(c) = nominal_start(&data.levels[top].rec, n + 1, opts.band_hz) {
-        extra.push(c);
+    if let Some(ch) = nominal_start(&data.levels[top_level(data)].rec, n + 1, band) {
+        extra.push(ch);
     }
     // candidate frequencies of the extra mode: the most significant localised bands
     let mut bands: Vec<Band> = Vec::new();
@@ -516,86 +589,70 @@ pub fn diagnose(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Diagnosis,
         })
         .collect();
     let mode_starts = effects::mode::starts(&nom_lin.chain, &freqs, &extra);
-    let mode_fit = effects::mode::fit(&data, &mode_starts);
-    // an "extra body" far heavier than the rest of the axis is the ground: its spring is a
-    // restoring stiffness on the last body (gravity; the nominal chain may have spent a body
-    // on it already). Refitted as gravity from there; the better of the two gravity fits.
+    let mode_fit = effects::mode::fit(data, &mode_starts);
     let ground_as_gravity = mode_fit
         .as_ref()
-        .and_then(|mf| effects::gravity::from_ground_body(&data, &mf.lin.chain));
-    push(&mut fits, mode_fit, "unmodelled_mode", &mut notes);
-    // early rejection: a linear candidate that already leaves only noise cannot be beaten
-    // significantly by a simulated one
-    let explained = fits
-        .iter()
-        .any(|f| f.chi2 < rank::NOISE_CHI2 * data.lines() as f64);
-    if explained && !opts.force_nonlinear {
-        notes.push(
+        .and_then(|mf| effects::gravity::from_ground_body(data, &mf.lin.chain));
+    c.push(mode_fit, Effect::UnmodelledMode);
+    ground_as_gravity
+}
+
+/// The amplitude-dependent candidates (simulated in the time domain): Coulomb friction,
+/// backlash, hardening stiffness. Skipped when a linear candidate already leaves only
+/// noise (a simulated one cannot beat it significantly) or when nothing changes between
+/// levels and no distortion shows at the detection lines, unless `force`.
+fn fit_amplitude_candidates(
+    data: &Data,
+    nom_lin: &LinExt,
+    residual: &ResidualKind,
+    force: bool,
+    c: &mut Candidates,
+) {
+    if c.explained(data) && !force {
+        c.notes.push(
             "amplitude-dependent candidates not simulated: a linear candidate leaves only noise"
                 .into(),
         );
-    } else if residual.nonlinear || opts.force_nonlinear {
-        push(
-            &mut fits,
-            effects::friction::fit(&data, &nom_lin),
-            "coulomb_friction",
-            &mut notes,
-        );
-        push(
-            &mut fits,
-            effects::backlash::fit(&data, &nom_lin),
-            "backlash",
-            &mut notes,
-        );
-        // hardening stiffens the springs at the highest level: start from the chain the
-        // lowest level sees
-        let low = (0..data.levels.len())
-            .min_by(|&a, &b| {
-                data.levels[a]
-                    .torque_rms
-                    .total_cmp(&data.levels[b].torque_rms)
-            })
-            .unwrap();
-        let low_lin =
-            effects::fit_linear(&data, &data.targets[low..low + 1], Lin::None, &nom_lin, 40)
-                .map(|r| r.0)
-                .unwrap_or_else(|| nom_lin.clone());
-        push(
-            &mut fits,
-            effects::hardening::fit(&data, &low_lin),
-            "hardening_stiffness",
-            &mut notes,
-        );
-    } else {
-        notes.push(
+        return;
+    }
+    if !(residual.nonlinear || force) {
+        c.notes.push(
             "amplitude-dependent candidates not simulated: no significant change between levels and no distortion at the detection lines".into(),
         );
+        return;
     }
-    if let Some(g) = ground_as_gravity {
-        match fits.iter().position(|f| f.effect == "gravity") {
-            Some(i) if fits[i].chi2 <= g.chi2 => {}
-            Some(i) => fits[i] = g,
-            None => fits.push(g),
-        }
+    c.push(
+        effects::friction::fit(data, nom_lin),
+        Effect::CoulombFriction,
+    );
+    c.push(effects::backlash::fit(data, nom_lin), Effect::Backlash);
+    // hardening stiffens the springs at the highest level: start from the chain the
+    // lowest level sees
+    let low = (0..data.levels.len())
+        .min_by(|&a, &b| {
+            data.levels[a]
+                .torque_rms
+                .total_cmp(&data.levels[b].torque_rms)
+        })
+        .unwrap();
+    let low_lin = effects::fit_linear(data, &data.targets[low..low + 1], Lin::None, nom_lin, 40)
+        .map(|r| r.0)
+        .unwrap_or_else(|| nom_lin.clone());
+    c.push(
+        effects::hardening::fit(data, &low_lin),
+        Effect::HardeningStiffness,
+    );
+}
+
+/// The better of the two gravity fits (the candidate's own, and the extra body refitted
+/// as the ground).
+fn keep_better_gravity(fits: &mut Vec<EffectFit>, ground_as_gravity: Option<EffectFit>) {
+    let Some(g) = ground_as_gravity else { return };
+    match fits.iter().position(|f| f.effect == Effect::Gravity) {
+        Some(i) if fits[i].chi2 <= g.chi2 => {}
+        Some(i) => fits[i] = g,
+        None => fits.push(g),
     }
-    let (ranking, win) = rank::rank(&data, &nominal, &fits, &residual);
-    let winner = win.map(|i| fits[i].clone());
-    let verdict = winner.as_ref().map(|w| w.effect).unwrap_or("none");
-    let gap = gap_of(&data, &nominal, winner.as_ref());
-    stage.lap("rank");
-    Ok(Diagnosis {
-        verdict,
-        masses: n,
-        nominal,
-        ranking,
-        winner,
-        gap,
-        residual,
-        data,
-        notes,
-        seconds: t0.elapsed().as_secs_f64(),
-        stage_cpu_s: stage.stages,
-    })
 }
 
 fn residual_kind(data: &Data, nominal: &EffectFit) -> ResidualKind {

@@ -4,6 +4,7 @@
 
 use super::effects::{EffectFit, Param};
 use super::{Data, ResidualKind};
+use crate::diagnose::Effect;
 use serde::Serialize;
 
 /// Reduced chi² of the nominal model below which the gap is taken as noise.
@@ -14,7 +15,7 @@ pub const MIN_REDUCTION: f64 = 0.02;
 /// One candidate in the ranking.
 #[derive(Debug, Clone, Serialize)]
 pub struct Ranked {
-    pub effect: &'static str,
+    pub effect: Effect,
     /// RMS log-complex gap with this effect [dB].
     pub after_rms_db: f64,
     /// chi² reduction over the nominal model minus `added * ln(lines)` (BIC); > 0: better.
@@ -55,7 +56,7 @@ pub fn rank(
         .collect();
     r.push((
         Ranked {
-            effect: "none",
+            effect: Effect::None,
             after_rms_db: rms_db(data, nominal),
             score: 0.0,
             chi2: nominal.chi2,

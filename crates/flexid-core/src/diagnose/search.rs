@@ -11,6 +11,7 @@ use super::lti::{Discrete, LinExt};
 use super::nlsim::{sim_frf, simulate, Nl};
 use super::simplex;
 use super::Data;
+use crate::diagnose::Effect;
 use num_complex::Complex64;
 
 /// Model FRFs of `lin` + `nl` on every level (all lines). `short`: simulate only the
@@ -121,7 +122,7 @@ fn search_1d(
 pub fn fit_nonlinear(
     data: &Data,
     nominal: &LinExt,
-    effect: &'static str,
+    effect: Effect,
     pname: &str,
     lo: f64,
     hi: f64,
@@ -216,7 +217,7 @@ fn finish(
     data: &Data,
     lin: LinExt,
     nl: Nl,
-    effect: &'static str,
+    effect: Effect,
     pname: &str,
     p: f64,
     sig: f64,
@@ -346,7 +347,7 @@ pub fn describing_solution(
 pub fn fit_spring(
     data: &Data,
     nominal: &LinExt,
-    effect: &'static str,
+    effect: Effect,
     pname: &str,
     spring: &Spring,
     make: impl Fn(usize, f64) -> Nl,

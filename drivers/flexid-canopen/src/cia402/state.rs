@@ -56,6 +56,12 @@ impl State {
         self.mask_value().1
     }
 
+    /// Whether the power stage produces torque in this state (Operation enabled, Quick stop
+    /// active).
+    pub const fn torque_enabled(self) -> bool {
+        matches!(self, State::OperationEnabled | State::QuickStopActive)
+    }
+
     /// Whether the drive is in a fault state (Fault reaction active or Fault).
     pub const fn is_fault(self) -> bool {
         matches!(self, State::Fault | State::FaultReactionActive)

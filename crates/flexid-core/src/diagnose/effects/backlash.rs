@@ -8,6 +8,7 @@ use crate::diagnose::lti::LinExt;
 use crate::diagnose::nlsim::Nl;
 use crate::diagnose::search::{fit_spring, Spring};
 use crate::diagnose::Data;
+use crate::diagnose::Effect;
 
 /// `erfc(x)` (Numerical Recipes' Chebyshev fit, relative error below 1.2e-7).
 pub fn erfc(x: f64) -> f64 {
@@ -58,7 +59,7 @@ pub fn fit(data: &Data, nominal: &LinExt) -> Option<EffectFit> {
     fit_spring(
         data,
         nominal,
-        "backlash",
+        Effect::Backlash,
         "half_gap_rad",
         &SPRING,
         |k, g| Nl::Backlash { k, g },

@@ -5,6 +5,7 @@
 use super::{finish_linear, fit_best_start, log_std, EffectFit, Lin, Param};
 use crate::diagnose::lti::{LinExt, Loop};
 use crate::diagnose::Data;
+use crate::diagnose::Effect;
 
 pub fn fit(data: &Data, nominal: &LinExt) -> Option<EffectFit> {
     let fmax = data.f_max();
@@ -49,7 +50,7 @@ pub fn fit(data: &Data, nominal: &LinExt) -> Option<EffectFit> {
                 std: log_std(&r, i0 + 1, l.zeta),
             });
         }
-        let e = finish_linear(data, "current_loop", m, p, order as usize);
+        let e = finish_linear(data, Effect::CurrentLoop, m, p, order as usize);
         let score = |e: &EffectFit| e.chi2 + pen * e.added as f64;
         if best.as_ref().is_none_or(|b| score(&e) < score(b)) {
             best = Some(e);

@@ -5,6 +5,7 @@
 use super::{finish_linear, fit_best_start, EffectFit, Lin, Param};
 use crate::diagnose::lti::LinExt;
 use crate::diagnose::Data;
+use crate::diagnose::Effect;
 
 pub fn fit(data: &Data, nominal: &LinExt) -> Option<EffectFit> {
     let ts = 1.0 / data.fs;
@@ -27,5 +28,5 @@ pub fn fit(data: &Data, nominal: &LinExt) -> Option<EffectFit> {
         value: m.delay_s,
         std,
     }];
-    Some(finish_linear(data, "time_delay", m, p, 1))
+    Some(finish_linear(data, Effect::TimeDelay, m, p, 1))
 }

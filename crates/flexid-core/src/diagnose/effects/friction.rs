@@ -6,13 +6,14 @@ use crate::diagnose::lti::LinExt;
 use crate::diagnose::nlsim::Nl;
 use crate::diagnose::search::fit_nonlinear;
 use crate::diagnose::Data;
+use crate::diagnose::Effect;
 
 pub fn fit(data: &Data, nominal: &LinExt) -> Option<EffectFit> {
     let u = data.torque_rms_min();
     fit_nonlinear(
         data,
         nominal,
-        "coulomb_friction",
+        Effect::CoulombFriction,
         "coulomb_nm",
         0.01 * u,
         2.0 * u,

@@ -6,6 +6,7 @@
 use super::{finish_linear, fit_best_start, log_std, EffectFit, Lin, Param};
 use crate::diagnose::lti::LinExt;
 use crate::diagnose::Data;
+use crate::diagnose::Effect;
 use crate::model::Chain;
 
 /// Identify gravity with the chain, started from `nominal` plus a grid of restoring
@@ -74,5 +75,5 @@ fn finish(data: &Data, m: LinExt, r: &crate::diagnose::lm::LmResult) -> EffectFi
             std: log_std(r, i0 + 1, m.motor_b),
         },
     ];
-    finish_linear(data, "gravity", m, p, 2)
+    finish_linear(data, Effect::Gravity, m, p, 2)
 }

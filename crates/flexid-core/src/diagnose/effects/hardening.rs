@@ -8,6 +8,7 @@ use crate::diagnose::lti::LinExt;
 use crate::diagnose::nlsim::Nl;
 use crate::diagnose::search::{fit_spring, Spring};
 use crate::diagnose::Data;
+use crate::diagnose::Effect;
 
 /// Equivalent stiffness of `c x (1 + (x/x_ref)²)` as a multiple of `c` under a Gaussian
 /// deflection of RMS `defl_rms_rad` (statistical linearisation: the mean slope
@@ -34,7 +35,7 @@ pub fn fit(data: &Data, nominal: &LinExt) -> Option<EffectFit> {
     fit_spring(
         data,
         nominal,
-        "hardening_stiffness",
+        Effect::HardeningStiffness,
         "x_ref_rad",
         &SPRING,
         |k, xref| Nl::Hardening { k, xref },

@@ -17,6 +17,7 @@ pub mod mode;
 use super::lm::{minimise, LmResult};
 use super::lti::{Discrete, LinExt, Loop};
 use super::Data;
+use crate::diagnose::Effect;
 use crate::model::Chain;
 use num_complex::Complex64;
 use serde::Serialize;
@@ -33,7 +34,7 @@ pub struct Param {
 /// An effect identified on the data.
 #[derive(Debug, Clone)]
 pub struct EffectFit {
-    pub effect: &'static str,
+    pub effect: Effect,
     pub params: Vec<Param>,
     /// Parameters the effect adds to the nominal chain.
     pub added: usize,
@@ -297,7 +298,7 @@ pub fn log_std(r: &LmResult, i: usize, v: f64) -> f64 {
 /// The finished effect: model on all lines, chi² and parameters.
 pub fn finish_linear(
     data: &Data,
-    effect: &'static str,
+    effect: Effect,
     lin: LinExt,
     params: Vec<Param>,
     added: usize,

@@ -14,6 +14,7 @@ use super::{build, finish_linear, fit_linear, residuals, theta, EffectFit, Lin, 
 use crate::diagnose::lm::{minimise, LmResult};
 use crate::diagnose::lti::LinExt;
 use crate::diagnose::Data;
+use crate::diagnose::Effect;
 use crate::model::Chain;
 
 /// LM iterations of the appended body alone (inertia, spring, damper) per start.
@@ -90,7 +91,7 @@ pub fn fit(data: &Data, starts: &[Chain]) -> Option<EffectFit> {
             std: f64::NAN,
         });
     }
-    Some(finish_linear(data, "unmodelled_mode", m, p, 3))
+    Some(finish_linear(data, Effect::UnmodelledMode, m, p, 3))
 }
 
 /// Each start's appended body prefitted ([`prefit_body`]); the [`JOINT_STARTS`] best of

@@ -102,8 +102,8 @@ pub(crate) fn simulate_to(
 
 /// `flexid simulate`.
 pub fn simulate(a: &SimulateArgs) -> Result<(), CliError> {
-    let plant =
-        flexid_files::plant::load_plant_file(a.plant.as_deref()).map_err(CliError::input)?;
+    let plant = flexid_files::plant::load_plant_file(a.plant.as_deref())
+        .map_err(|e| CliError::input(e.to_string()))?;
     let (torque, sidecar) = read_excitation(&a.excitation)?;
     if let Some(fs) = sidecar.sample_rate_hz {
         if (fs - plant.measurement.sample_rate_hz).abs() > 1e-9 * fs {

@@ -182,8 +182,8 @@ pub(super) fn print_truth(an: &Analysis, plant: &PlantFile) {
 
 /// `flexid demo`: over the bus when possible, else the in-process simulation.
 pub fn demo(a: &DemoArgs) -> Result<(), CliError> {
-    let plant =
-        flexid_files::plant::load_plant_file(a.plant.as_deref()).map_err(CliError::input)?;
+    let plant = flexid_files::plant::load_plant_file(a.plant.as_deref())
+        .map_err(|e| CliError::input(e.to_string()))?;
     let ready = sibling_vdrive()
         .and_then(|bin| flexid_can::keep_multicast_on_loopback(GROUP).map(|()| bin));
     let bin = match ready {
@@ -280,8 +280,8 @@ fn demo_excitation(plant: &PlantFile) -> Result<Excitation, CliError> {
 /// `flexid demo` without a bus: the plant simulated in-process (`flexid::sim`: exact ZOH,
 /// encoder quantisation, noise), measured and identified.
 pub(crate) fn demo_simulated(a: &DemoArgs) -> Result<(), CliError> {
-    let plant =
-        flexid_files::plant::load_plant_file(a.plant.as_deref()).map_err(CliError::input)?;
+    let plant = flexid_files::plant::load_plant_file(a.plant.as_deref())
+        .map_err(|e| CliError::input(e.to_string()))?;
     std::fs::create_dir_all(&a.out)
         .map_err(|e| CliError::failed(format!("{}: {e}", a.out.display())))?;
     let fs = plant.measurement.sample_rate_hz;

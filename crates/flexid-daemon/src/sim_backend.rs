@@ -48,10 +48,18 @@ impl SimBackend {
 
     /// A backend for a plant file (the embedded SCARA shoulder when `None`), with its
     /// torque noise and encoder.
-    pub fn from_plant_file(path: Option<&std::path::Path>) -> Result<Self, String> {
+    pub fn from_plant_file(
+        path: Option<&std::path::Path>,
+    ) -> Result<Self, flexid_files::plant::LoadPlantError> {
         let p = flexid_files::plant::load_plant_file(path)?;
-        let mut b = SimBackend::new(p.chain.clone(), p.name.as_deref().unwrap_or("plant file"))
-            .map_err(|e| e.to_string())?;
+        // the chain was validated with the file: `new` cannot refuse it
+        let mut b = SimBackend {
+            chain: p.chain.clone(),
+            torque_noise_nm: 0.0,
+            encoder_counts_per_rev: None,
+            name: p.name.clone().unwrap_or_else(|| "plant file".into()),
+            effects: None,
+        };
         b.torque_noise_nm = p.measurement.torque_noise_nm;
         b.encoder_counts_per_rev = p.measurement.encoder_counts_per_rev;
         if p.has_effects() {

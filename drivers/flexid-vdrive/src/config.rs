@@ -148,7 +148,10 @@ pub enum ConfigError {
     Parse { origin: String, message: String },
     /// The plant part (`[chain]`, `[measurement]`, ...) is wrong (flexid's message).
     #[error("{0}")]
-    Plant(String),
+    Plant(#[from] flexid_core::plant::PlantFileError),
+    /// The plant's cycle rate is outside what a drive can run.
+    #[error("{origin}: [measurement] sample_rate_hz = {fs_hz} must be in (0, 1e6]")]
+    SampleRate { origin: String, fs_hz: f64 },
     /// A `[drive]` value is out of range.
     #[error("{origin}: [drive] {message}")]
     Drive { origin: String, message: String },
@@ -216,9 +219,10 @@ impl DrivePlant {
         }
         let fs = plant.measurement.sample_rate_hz;
         if !pos(fs) || fs > 1e6 {
-            return Err(ConfigError::Plant(format!(
-                "{origin}: [measurement] sample_rate_hz = {fs} must be in (0, 1e6]"
-            )));
+            return Err(ConfigError::SampleRate {
+                origin: origin.to_string(),
+                fs_hz: fs,
+            });
         }
         Ok(Self { plant, drive })
     }

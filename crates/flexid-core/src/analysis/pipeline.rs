@@ -122,17 +122,74 @@ pub fn analyze(rec: &Recording, opts: &AnalysisOptions) -> Result<Analysis, Anal
 }
 
 fn analyze_uncapped(rec: &Recording, opts: &AnalysisOptions) -> Result<Analysis, AnalysisError> {
-    if let Some(m) = opts.masses {
-        if m == 0 || m > opts.max_masses.max(8) {
-            return Err(AnalysisError::Masses {
-                masses: m,
-                max: opts.max_masses.max(8),
-            });
-        }
-    }
-    let measured = estimate_frf(rec, opts.band_hz)?;
+    check_masses(opts)?;
     let fs = rec.sample_rate_hz;
     let delay = rec.sidecar.io_delay_samples.unwrap_or(0);
+    let (mut analysis, work, fittable) = measure_and_detect(rec, opts, delay)?;
+    let total = total_inertia(
+        rec,
+        &work,
+        &analysis.detection.pairs,
+        delay,
+        &mut analysis.notes,
+    );
+    let Some(total) = total else {
+        return Ok(analysis);
+    };
+    let j = total.j_kgm2;
+    analysis.total_inertia = Some(total);
+    let spectra: Vec<(f64, f64)> = analysis
+        .detection
+        .pairs
+        .iter()
+        .map(|p| (p.ar_hz, p.r_hz))
+        .collect();
+    inverse_models(&mut analysis, j, &spectra);
+    if !fittable {
+        return Ok(analysis);
+    }
+    let by_prominence = by_prominence(&analysis.detection.pairs);
+    let fit_opts = FitOptions {
+        delay_samples: delay,
+        band_hz: opts.band_hz,
+        ..opts.fit.clone()
+    };
+    let fit = match opts.masses {
+        Some(m) => fit_given_order(
+            &mut analysis,
+            m,
+            j,
+            &spectra,
+            &by_prominence,
+            &fit_opts,
+            opts,
+        )?,
+        None => fit_chosen_order(&mut analysis, j, &spectra, &by_prominence, &fit_opts, opts)?,
+    };
+    finish(analysis, fit, fs, delay)
+}
+
+/// `--masses` within 1 ..= max(max_masses, 8).
+fn check_masses(opts: &AnalysisOptions) -> Result<(), AnalysisError> {
+    match opts.masses {
+        Some(m) if m == 0 || m > opts.max_masses.max(8) => Err(AnalysisError::Masses {
+            masses: m,
+            max: opts.max_masses.max(8),
+        }),
+        _ => Ok(()),
+    }
+}
+
+/// The measured FRF and the anti-resonance/resonance pairs on it; also the mobility the
+/// pairs are located on (the FRF itself, or its equivalent for a velocity or acceleration
+/// response) and whether the chain can be fitted to the FRF (position or differenced
+/// velocity response).
+fn measure_and_detect(
+    rec: &Recording,
+    opts: &AnalysisOptions,
+    delay: u32,
+) -> Result<(Analysis, Frf, bool), AnalysisError> {
+    let measured = estimate_frf(rec, opts.band_hz)?;
     let mut notes = Vec::new();
     if let Some(src) = &rec.sidecar.source {
         notes.push(format!("source: {src}"));
@@ -157,9 +214,9 @@ fn analyze_uncapped(rec: &Recording, opts: &AnalysisOptions) -> Result<Analysis,
     };
     let detection = detect_pairs(&work, &detect_opts)?;
     notes.extend(detection.notes.iter().cloned());
-    let mut analysis = Analysis {
+    let analysis = Analysis {
         measured,
-        sample_rate_hz: fs,
+        sample_rate_hz: rec.sample_rate_hz,
         delay_samples: delay,
         total_inertia: None,
         detection,
@@ -172,37 +229,31 @@ fn analyze_uncapped(rec: &Recording, opts: &AnalysisOptions) -> Result<Analysis,
         notes,
         time_cap: None,
     };
-    let total = total_inertia(
-        rec,
-        &work,
-        &analysis.detection.pairs,
-        delay,
-        &mut analysis.notes,
-    );
-    let Some(total) = total else {
-        return Ok(analysis);
-    };
-    let j = total.j_kgm2;
-    analysis.total_inertia = Some(total);
-    // pairs that are fully observed
-    let pairs: Vec<&ArRPair> = analysis.detection.pairs.iter().collect();
-    let spectra: Vec<(f64, f64)> = pairs.iter().map(|p| (p.ar_hz, p.r_hz)).collect();
+    Ok((analysis, work, fittable))
+}
+
+/// The chain of total inertia `j` [kg m^2] with exactly the anti-resonances and
+/// resonances `sel` [Hz] (the Cauer inverse), couplings damped at 5 %.
+fn exact_chain(j: f64, sel: &[(f64, f64)]) -> Option<Chain> {
+    let ar: Vec<f64> = sel.iter().map(|p| p.0).collect();
+    let r: Vec<f64> = sel.iter().map(|p| p.1).collect();
+    chain_from_spectra(j, &ar, &r)
+        .ok()
+        .map(|c| with_coupling_damping(c, 0.05))
+}
+
+/// The paper's step-by-step inverse and the exact inverse of all detected pairs, and
+/// how far apart they are.
+fn inverse_models(analysis: &mut Analysis, j: f64, spectra: &[(f64, f64)]) {
     if !spectra.is_empty() {
-        match step_by_step(j, &spectra, None) {
+        match step_by_step(j, spectra, None) {
             Ok(s) => analysis.paper = Some(s),
             Err(e) => analysis
                 .notes
                 .push(format!("step-by-step algorithm not applicable: {e}")),
         }
     }
-    let exact_for = |sel: &[(f64, f64)]| -> Option<Chain> {
-        let ar: Vec<f64> = sel.iter().map(|p| p.0).collect();
-        let r: Vec<f64> = sel.iter().map(|p| p.1).collect();
-        chain_from_spectra(j, &ar, &r)
-            .ok()
-            .map(|c| with_coupling_damping(c, 0.05))
-    };
-    analysis.exact = exact_for(&spectra).map(|mut c| {
+    analysis.exact = exact_chain(j, spectra).map(|mut c| {
         c.damping_nms_per_rad.iter_mut().for_each(|d| *d = 0.0);
         c
     });
@@ -225,113 +276,131 @@ fn analyze_uncapped(rec: &Recording, opts: &AnalysisOptions) -> Result<Analysis,
             100.0 * worst
         ));
     }
-    if !fittable {
-        return Ok(analysis);
-    }
-    // Candidate initial chains, one per order: all pairs, then dropping the least prominent.
-    let mut by_prominence: Vec<usize> = (0..spectra.len()).collect();
-    by_prominence.sort_by(|&a, &b| {
+}
+
+/// The pairs' indices, most prominent first (prominence: the smaller of the
+/// anti-resonance's depth and the resonance's height).
+fn by_prominence(pairs: &[ArRPair]) -> Vec<usize> {
+    let mut order: Vec<usize> = (0..pairs.len()).collect();
+    order.sort_by(|&a, &b| {
         let pa = pairs[a].depth_db.min(pairs[a].height_db);
         let pb = pairs[b].depth_db.min(pairs[b].height_db);
         pb.total_cmp(&pa)
     });
-    let chain_with = |k: usize| -> Option<Chain> {
-        let mut keep: Vec<usize> = by_prominence[..k].to_vec();
-        keep.sort_unstable();
-        let sel: Vec<(f64, f64)> = keep.iter().map(|&i| spectra[i]).collect();
-        exact_for(&sel)
-    };
-    let fit_opts = FitOptions {
-        delay_samples: delay,
-        band_hz: opts.band_hz,
-        ..opts.fit.clone()
-    };
-    let fit = match opts.masses {
-        Some(m) => {
-            let k = m - 1;
-            let init = if k < spectra.len() {
-                // Fewer bodies than detected pairs: which pairs the best reduced chain keeps
-                // is not known beforehand (the most prominent pair need not be the one that
-                // explains most of the band), so every choice of k pairs is fitted (at most
-                // a few dozen) and the lowest cost wins.
-                let choices = combinations(spectra.len(), k, 32);
-                let mut best: Option<ChainFit> = None;
-                let mut last_err = None;
-                let budget = &opts.fit.budget;
-                for keep in choices {
-                    if budget.expired() && best.is_some() {
-                        budget.skip_order();
-                        continue;
-                    }
-                    budget.begin_fit(m, opts.fit.starts);
-                    let sel: Vec<(f64, f64)> = keep.iter().map(|&i| spectra[i]).collect();
-                    let Some(init) = exact_for(&sel) else {
-                        continue;
-                    };
-                    match fit_chain(&analysis.measured.frf, &init, &fit_opts) {
-                        Ok(f) if best.as_ref().is_none_or(|b| f.cost < b.cost) => best = Some(f),
-                        Ok(_) => {}
-                        Err(e) => last_err = Some(e),
-                    }
-                }
-                match (best, last_err) {
-                    (Some(f), _) => {
-                        analysis.notes.push(format!(
-                            "{m} bodies asked for, {} pairs detected: every choice of {k} pairs was fitted and the best kept",
-                            spectra.len()
-                        ));
-                        return finish(analysis, f, fs, delay);
-                    }
-                    (None, Some(e)) => return Err(e.into()),
-                    (None, None) => None,
-                }
-            } else if k == spectra.len() {
-                chain_with(k)
-            } else {
-                analysis.notes.push(format!(
-                    "{m} bodies asked for but only {} anti-resonance/resonance pairs were detected: the missing pairs start near the top of the band",
-                    spectra.len()
-                ));
-                let top = analysis
-                    .measured
-                    .frf
-                    .freq_hz
-                    .last()
-                    .copied()
-                    .unwrap_or(fs / 4.0);
-                let mut sel = spectra.clone();
-                let mut f = top * 0.5;
-                while sel.len() < k {
-                    sel.push((f, f * 1.3));
-                    f *= 1.5;
-                }
-                exact_for(&sel)
-            };
-            let init = init.ok_or(IdentifyError::InvalidArgument(
-                "no initial chain could be formed from the detected pairs".into(),
-            ))?;
-            opts.fit.budget.begin_fit(m, opts.fit.starts);
-            fit_chain(&analysis.measured.frf, &init, &fit_opts)?
-        }
-        None => {
-            let hi = spectra.len().min(opts.max_masses.saturating_sub(1));
-            let lo = hi.saturating_sub(2);
-            let mut candidates: Vec<Chain> = (lo..=hi).filter_map(chain_with).collect();
-            if candidates.is_empty() {
-                // The detected pairs do not interlace into any chain (e.g. a pair split by
-                // backlash): the rigid body is still a model, and the report says why.
-                analysis.notes.push(format!(
-                    "the {} detected pairs do not form a spring-mass chain (anti-resonances and resonances must interlace): only the rigid body is fitted",
-                    spectra.len()
-                ));
-                candidates.extend(exact_for(&[]));
+    order
+}
+
+/// The initial chain with the `k` most prominent pairs.
+fn chain_with(j: f64, spectra: &[(f64, f64)], by_prominence: &[usize], k: usize) -> Option<Chain> {
+    let mut keep: Vec<usize> = by_prominence[..k].to_vec();
+    keep.sort_unstable();
+    let sel: Vec<(f64, f64)> = keep.iter().map(|&i| spectra[i]).collect();
+    exact_chain(j, &sel)
+}
+
+/// `--masses m`: the chain of `m` bodies. With fewer bodies than detected pairs, which
+/// pairs the best reduced chain keeps is not known beforehand (the most prominent pair
+/// need not be the one that explains most of the band), so every choice of `m - 1` pairs
+/// is fitted (at most a few dozen) and the lowest cost wins; with more, the missing pairs
+/// start near the top of the band.
+fn fit_given_order(
+    analysis: &mut Analysis,
+    m: usize,
+    j: f64,
+    spectra: &[(f64, f64)],
+    by_prominence: &[usize],
+    fit_opts: &FitOptions,
+    opts: &AnalysisOptions,
+) -> Result<ChainFit, AnalysisError> {
+    let k = m - 1;
+    let init = if k < spectra.len() {
+        let choices = combinations(spectra.len(), k, 32);
+        let mut best: Option<ChainFit> = None;
+        let mut last_err = None;
+        let budget = &opts.fit.budget;
+        for keep in choices {
+            if budget.expired() && best.is_some() {
+                budget.skip_order();
+                continue;
             }
-            let sel = select_order(&analysis.measured.frf, &candidates, &fit_opts)?;
-            analysis.orders = sel.candidates;
-            sel.fit
+            budget.begin_fit(m, opts.fit.starts);
+            let sel: Vec<(f64, f64)> = keep.iter().map(|&i| spectra[i]).collect();
+            let Some(init) = exact_chain(j, &sel) else {
+                continue;
+            };
+            match fit_chain(&analysis.measured.frf, &init, fit_opts) {
+                Ok(f) if best.as_ref().is_none_or(|b| f.cost < b.cost) => best = Some(f),
+                Ok(_) => {}
+                Err(e) => last_err = Some(e),
+            }
         }
+        match (best, last_err) {
+            (Some(f), _) => {
+                analysis.notes.push(format!(
+                    "{m} bodies asked for, {} pairs detected: every choice of {k} pairs was fitted and the best kept",
+                    spectra.len()
+                ));
+                return Ok(f);
+            }
+            (None, Some(e)) => return Err(e.into()),
+            (None, None) => None,
+        }
+    } else if k == spectra.len() {
+        chain_with(j, spectra, by_prominence, k)
+    } else {
+        analysis.notes.push(format!(
+            "{m} bodies asked for but only {} anti-resonance/resonance pairs were detected: the missing pairs start near the top of the band",
+            spectra.len()
+        ));
+        let top = analysis
+            .measured
+            .frf
+            .freq_hz
+            .last()
+            .copied()
+            .unwrap_or(analysis.sample_rate_hz / 4.0);
+        let mut sel = spectra.to_vec();
+        let mut f = top * 0.5;
+        while sel.len() < k {
+            sel.push((f, f * 1.3));
+            f *= 1.5;
+        }
+        exact_chain(j, &sel)
     };
-    finish(analysis, fit, fs, delay)
+    let init = init.ok_or(IdentifyError::InvalidArgument(
+        "no initial chain could be formed from the detected pairs".into(),
+    ))?;
+    opts.fit.budget.begin_fit(m, opts.fit.starts);
+    Ok(fit_chain(&analysis.measured.frf, &init, fit_opts)?)
+}
+
+/// No `--masses`: the orders with all pairs and with the one or two least prominent
+/// dropped, the order chosen by [`select_order`]. When the pairs do not interlace into any
+/// chain (e.g. a pair split by backlash), the rigid body is still a model, and the report
+/// says why.
+fn fit_chosen_order(
+    analysis: &mut Analysis,
+    j: f64,
+    spectra: &[(f64, f64)],
+    by_prominence: &[usize],
+    fit_opts: &FitOptions,
+    opts: &AnalysisOptions,
+) -> Result<ChainFit, AnalysisError> {
+    let hi = spectra.len().min(opts.max_masses.saturating_sub(1));
+    let lo = hi.saturating_sub(2);
+    let mut candidates: Vec<Chain> = (lo..=hi)
+        .filter_map(|k| chain_with(j, spectra, by_prominence, k))
+        .collect();
+    if candidates.is_empty() {
+        analysis.notes.push(format!(
+            "the {} detected pairs do not form a spring-mass chain (anti-resonances and resonances must interlace): only the rigid body is fitted",
+            spectra.len()
+        ));
+        candidates.extend(exact_chain(j, &[]));
+    }
+    let sel = select_order(&analysis.measured.frf, &candidates, fit_opts)?;
+    analysis.orders = sel.candidates;
+    Ok(sel.fit)
 }
 
 /// The identified model's response on the measured lines and the summary, into `analysis`.

@@ -265,204 +265,271 @@ pub fn detect_pairs(frf: &Frf, opts: &DetectOptions) -> Result<Detection, Identi
             needed: 5,
         });
     }
-    let y: Vec<f64> = nr.r.iter().map(|r| r.norm().ln()).collect();
-    let ph: Vec<f64> = nr.r.iter().map(|r| rel_phase(*r)).collect();
-    let f = &nr.freq_hz;
-    let s = &nr.sigma;
-
-    let mut det = Detection {
-        pairs: Vec::new(),
-        peaks: Vec::new(),
-        rejected: Vec::new(),
-        notes: Vec::new(),
+    let mut p = Pairing {
+        y: nr.r.iter().map(|r| r.norm().ln()).collect(),
+        ph: nr.r.iter().map(|r| rel_phase(*r)).collect(),
+        nr: &nr,
+        min_rise: opts.min_phase_rise_deg.to_radians(),
+        lower_bound: 0,
+        paired_peaks: Vec::new(),
+        det: Detection {
+            pairs: Vec::new(),
+            peaks: Vec::new(),
+            rejected: Vec::new(),
+            notes: Vec::new(),
+        },
     };
     // 1. candidates
-    let mut cands = Vec::new();
-    // notches deep enough in dB but short of the sigma threshold, kept for the interlacing rule
-    let mut weak_notches: Vec<Candidate> = Vec::new();
-    for kind in [ExtremumKind::Notch, ExtremumKind::Peak] {
-        let sign = if kind == ExtremumKind::Peak {
-            1.0
-        } else {
-            -1.0
-        };
-        let v: Vec<f64> = y.iter().map(|x| sign * x).collect();
-        let k = opts.min_sigma.max(1.0);
-        for (i, prom, iref) in prominences(&v) {
-            // Near a notch the relative scatter of |H| is large (the motor barely moves
-            // there) and ln|H| +- sigma is no longer symmetric. Of the two points compared,
-            // the lower one (the notch line itself, or a peak's reference line, which is
-            // often the bottom of the preceding notch) is judged by its upper confidence
-            // bound |H|(1 + k s): `ln(1 + k s)/k` per sigma, ~ s for small s. The higher
-            // point keeps its plain sigma.
-            let ucb = |s: f64| (1.0 + k * s).ln() / k;
-            let (s_line, s_ref) = if kind == ExtremumKind::Notch {
-                (ucb(s[i]), s[iref])
+    let cands = p.candidates(opts);
+    // 2. pairing in physical order
+    p.pair_in_order(&cands, opts);
+    // 4. all significant peaks, paired or not
+    let peaks = p.significant_peaks(&cands);
+    let mut det = p.det;
+    det.peaks = peaks;
+    det.peaks.sort_by(|a, b| a.freq_hz.total_cmp(&b.freq_hz));
+    det.pairs.sort_by(|a, b| a.r_hz.total_cmp(&b.r_hz));
+    det.rejected.sort_by(|a, b| a.freq_hz.total_cmp(&b.freq_hz));
+    Ok(det)
+}
+
+/// The state of [`detect_pairs`] over one normalised response.
+struct Pairing<'a> {
+    nr: &'a NormalizedResponse,
+    /// `ln |R|` per line.
+    y: Vec<f64>,
+    /// The relative phase per line [rad].
+    ph: Vec<f64>,
+    /// The phase rise that marks a compliant coupling [rad].
+    min_rise: f64,
+    /// First line index after the previous accepted pair.
+    lower_bound: usize,
+    /// (line, r_hz, r_std_hz) of the resonances in accepted pairs.
+    paired_peaks: Vec<(usize, f64, f64)>,
+    det: Detection,
+}
+
+impl Pairing<'_> {
+    /// Step 1: the notches and peaks prominent enough in dB and in sigma, in line order;
+    /// weaker ones are rejected with their reason (notches deep enough in dB but short of
+    /// the sigma threshold are kept for the interlacing rule).
+    fn candidates(&mut self, opts: &DetectOptions) -> Vec<Candidate> {
+        let (y, f, s) = (&self.y, &self.nr.freq_hz, &self.nr.sigma);
+        let det = &mut self.det;
+        let mut cands = Vec::new();
+        let mut weak_notches: Vec<Candidate> = Vec::new();
+        for kind in [ExtremumKind::Notch, ExtremumKind::Peak] {
+            let sign = if kind == ExtremumKind::Peak {
+                1.0
             } else {
-                (s[i], ucb(s[iref]))
+                -1.0
             };
-            let sigma = (s_line * s_line + s_ref * s_ref).sqrt();
-            let c = Candidate {
-                i,
-                kind,
-                prom,
-                sigma,
-            };
-            let db = prom * DB;
-            if db >= opts.min_depth_db && prom >= opts.min_sigma * sigma {
-                cands.push(c);
-            } else if db >= 1.0 && prom >= 3.0 * sigma {
-                if kind == ExtremumKind::Notch && db >= opts.min_depth_db {
-                    weak_notches.push(c);
+            let v: Vec<f64> = y.iter().map(|x| sign * x).collect();
+            let k = opts.min_sigma.max(1.0);
+            for (i, prom, iref) in prominences(&v) {
+                // Near a notch the relative scatter of |H| is large (the motor barely moves
+                // there) and ln|H| +- sigma is no longer symmetric. Of the two points compared,
+                // the lower one (the notch line itself, or a peak's reference line, which is
+                // often the bottom of the preceding notch) is judged by its upper confidence
+                // bound |H|(1 + k s): `ln(1 + k s)/k` per sigma, ~ s for small s. The higher
+                // point keeps its plain sigma.
+                let ucb = |s: f64| (1.0 + k * s).ln() / k;
+                let (s_line, s_ref) = if kind == ExtremumKind::Notch {
+                    (ucb(s[i]), s[iref])
+                } else {
+                    (s[i], ucb(s[iref]))
+                };
+                let sigma = (s_line * s_line + s_ref * s_ref).sqrt();
+                let c = Candidate {
+                    i,
+                    kind,
+                    prom,
+                    sigma,
+                };
+                let db = prom * DB;
+                if db >= opts.min_depth_db && prom >= opts.min_sigma * sigma {
+                    cands.push(c);
+                } else if db >= 1.0 && prom >= 3.0 * sigma {
+                    if kind == ExtremumKind::Notch && db >= opts.min_depth_db {
+                        weak_notches.push(c);
+                    }
+                    det.rejected.push(reject(
+                        f,
+                        &c,
+                        format!(
+                            "prominence {db:.1} dB / {:.1} sigma below the thresholds \
+                         ({} dB, {} sigma)",
+                            prom / sigma,
+                            opts.min_depth_db,
+                            opts.min_sigma
+                        ),
+                    ));
+                }
+            }
+        }
+        cands.sort_by_key(|c| c.i);
+        promote_interlacing_notches(&mut cands, &weak_notches, det, f);
+        cands
+    }
+
+    /// Step 2: each anti-resonance paired with the resonance that follows it when the
+    /// phase rises between them; an anti-resonance at the top of the band and a resonance
+    /// at its bottom may pair with a partner outside it.
+    fn pair_in_order(&mut self, cands: &[Candidate], opts: &DetectOptions) {
+        let mut k = 0;
+        while k < cands.len() {
+            let c = cands[k];
+            match c.kind {
+                ExtremumKind::Notch => {
+                    if self.pair_notch(cands, k, opts) {
+                        k += 2;
+                        continue;
+                    }
+                    k += 1;
+                }
+                ExtremumKind::Peak => {
+                    self.pair_peak(cands, k);
+                    k += 1;
+                }
+            }
+        }
+    }
+
+    /// The notch `cands[k]`: paired with the next peak (true: both used), or at the top
+    /// of the band, or rejected.
+    fn pair_notch(&mut self, cands: &[Candidate], k: usize, opts: &DetectOptions) -> bool {
+        let c = cands[k];
+        let (nr, m, min_rise, lower_bound) =
+            (self.nr, self.y.len(), self.min_rise, self.lower_bound);
+        let (y, ph, f, s) = (&self.y, &self.ph, &nr.freq_hz, &nr.sigma);
+        let det = &mut self.det;
+        let next = cands.get(k + 1).copied();
+        match next {
+            Some(n) if n.kind == ExtremumKind::Peak => {
+                let base = min_smoothed(ph, lower_bound, c.i);
+                let top = max_smoothed(ph, c.i, n.i + 1);
+                let rise = top - base;
+                if rise >= min_rise {
+                    let upper = cands.get(k + 2).map_or(m, |x| x.i);
+                    let p = refine_pair(nr, y, Some(c), Some(n), lower_bound, upper, rise);
+                    self.paired_peaks.push((n.i, p.r_hz, p.r_std_hz));
+                    det.pairs.push(p);
+                    self.lower_bound = n.i;
+                    return true;
                 }
                 det.rejected.push(reject(
                     f,
                     &c,
                     format!(
-                        "prominence {db:.1} dB / {:.1} sigma below the thresholds \
-                         ({} dB, {} sigma)",
-                        prom / sigma,
-                        opts.min_depth_db,
-                        opts.min_sigma
+                        "phase rises only {:.0} deg up to the peak at {:.4} Hz \
+                         (needs {:.0})",
+                        rise.to_degrees(),
+                        f[n.i],
+                        opts.min_phase_rise_deg
                     ),
                 ));
             }
-        }
-    }
-    cands.sort_by_key(|c| c.i);
-    promote_interlacing_notches(&mut cands, &weak_notches, &mut det, f);
-
-    // 2. pairing in physical order
-    let min_rise = opts.min_phase_rise_deg.to_radians();
-    let mut k = 0;
-    let mut lower_bound = 0usize; // first line index after the previous accepted pair
-    let mut paired_peaks: Vec<(usize, f64, f64)> = Vec::new(); // (line, r_hz, r_std_hz)
-    while k < cands.len() {
-        let c = cands[k];
-        match c.kind {
-            ExtremumKind::Notch => {
-                let next = cands.get(k + 1).copied();
-                match next {
-                    Some(n) if n.kind == ExtremumKind::Peak => {
-                        let base = min_smoothed(&ph, lower_bound, c.i);
-                        let top = max_smoothed(&ph, c.i, n.i + 1);
-                        let rise = top - base;
-                        if rise >= min_rise {
-                            let upper = cands.get(k + 2).map_or(m, |x| x.i);
-                            let p =
-                                refine_pair(&nr, &y, Some(c), Some(n), lower_bound, upper, rise);
-                            paired_peaks.push((n.i, p.r_hz, p.r_std_hz));
-                            det.pairs.push(p);
-                            lower_bound = n.i;
-                            k += 2;
-                            continue;
-                        }
-                        det.rejected.push(reject(
-                            f,
-                            &c,
-                            format!(
-                                "phase rises only {:.0} deg up to the peak at {:.4} Hz \
-                                 (needs {:.0})",
-                                rise.to_degrees(),
-                                f[n.i],
-                                opts.min_phase_rise_deg
-                            ),
-                        ));
-                    }
-                    Some(_) => det.rejected.push(reject(
-                        f,
-                        &c,
-                        "followed by another notch without a resonance in between".into(),
-                    )),
-                    None => {
-                        // resonance above the band?
-                        let base = min_smoothed(&ph, lower_bound, c.i);
-                        let top = max_smoothed(&ph, c.i, m);
-                        let tail = median(&ph[m.saturating_sub(3)..m]);
-                        let rise = top - base;
-                        if let Some(peak) = edge_resonance(&y, &ph, s, c.i, base, min_rise) {
-                            // the resonance is inside the band but too close to its top
-                            // for a two-sided prominence
-                            let rise = max_smoothed(&ph, c.i, peak.i + 1) - base;
-                            let p = refine_pair(&nr, &y, Some(c), Some(peak), lower_bound, m, rise);
-                            det.notes.push(format!(
-                                "resonance at {:.4} Hz: {} lines below the top of the band, \
-                                 its peak is judged on its lower side only",
-                                p.r_hz,
-                                m - 1 - peak.i
-                            ));
-                            paired_peaks.push((peak.i, p.r_hz, p.r_std_hz));
-                            det.pairs.push(p);
-                            lower_bound = peak.i;
-                        } else if rise >= min_rise && tail - base >= min_rise {
-                            let p = refine_pair(&nr, &y, Some(c), None, lower_bound, m, rise);
-                            det.notes.push(format!(
-                                "anti-resonance at {:.4} Hz: its resonance lies above the \
-                                 highest line ({:.4} Hz)",
-                                p.ar_hz,
-                                f[m - 1]
-                            ));
-                            det.pairs.push(p);
-                        } else {
-                            det.rejected.push(reject(
-                                f,
-                                &c,
-                                "no resonance follows and the phase does not stay \
-                                 spring-like up to the end of the band"
-                                    .into(),
-                            ));
-                        }
-                    }
-                }
-                k += 1;
-            }
-            ExtremumKind::Peak => {
-                let first = det.pairs.is_empty() && lower_bound == 0;
-                let head = median(&ph[..3.min(m)]);
-                let top = max_smoothed(&ph, 0, c.i + 1);
-                if first && head >= min_rise && top >= min_rise {
-                    let upper = cands.get(k + 1).map_or(m, |x| x.i);
-                    let p = refine_pair(&nr, &y, None, Some(c), 0, upper, top);
-                    paired_peaks.push((c.i, p.r_hz, p.r_std_hz));
+            Some(_) => det.rejected.push(reject(
+                f,
+                &c,
+                "followed by another notch without a resonance in between".into(),
+            )),
+            None => {
+                // resonance above the band?
+                let base = min_smoothed(ph, lower_bound, c.i);
+                let top = max_smoothed(ph, c.i, m);
+                let tail = median(&ph[m.saturating_sub(3)..m]);
+                let rise = top - base;
+                if let Some(peak) = edge_resonance(y, ph, s, c.i, base, min_rise) {
+                    // the resonance is inside the band but too close to its top
+                    // for a two-sided prominence
+                    let rise = max_smoothed(ph, c.i, peak.i + 1) - base;
+                    let p = refine_pair(nr, y, Some(c), Some(peak), lower_bound, m, rise);
                     det.notes.push(format!(
-                        "resonance at {:.4} Hz: its anti-resonance lies below the lowest \
-                         line ({:.4} Hz); the phase is already spring-like there",
-                        p.r_hz, f[0]
+                        "resonance at {:.4} Hz: {} lines below the top of the band, \
+                         its peak is judged on its lower side only",
+                        p.r_hz,
+                        m - 1 - peak.i
+                    ));
+                    self.paired_peaks.push((peak.i, p.r_hz, p.r_std_hz));
+                    det.pairs.push(p);
+                    self.lower_bound = peak.i;
+                } else if rise >= min_rise && tail - base >= min_rise {
+                    let p = refine_pair(nr, y, Some(c), None, lower_bound, m, rise);
+                    det.notes.push(format!(
+                        "anti-resonance at {:.4} Hz: its resonance lies above the \
+                         highest line ({:.4} Hz)",
+                        p.ar_hz,
+                        f[m - 1]
                     ));
                     det.pairs.push(p);
-                    lower_bound = c.i;
                 } else {
                     det.rejected.push(reject(
                         f,
                         &c,
-                        "resonance without an anti-resonance below it".into(),
+                        "no resonance follows and the phase does not stay \
+                         spring-like up to the end of the band"
+                            .into(),
                     ));
                 }
-                k += 1;
             }
         }
+        false
     }
-    // 4. all significant peaks, paired or not
-    det.peaks = cands
-        .iter()
-        .filter(|c| c.kind == ExtremumKind::Peak)
-        .map(|c| {
-            let paired = paired_peaks.iter().find(|p| p.0 == c.i);
-            let (freq_hz, std_hz) =
-                paired.map_or_else(|| parabola(f, &y, c.i, 1.0, s), |p| (p.1, p.2));
-            ResonancePeak {
-                freq_hz,
-                std_hz,
-                prominence_db: c.prom * DB,
-                prominence_sigma: c.prom / c.sigma,
-                paired: paired.is_some(),
-            }
-        })
-        .collect();
-    det.peaks.sort_by(|a, b| a.freq_hz.total_cmp(&b.freq_hz));
-    det.pairs.sort_by(|a, b| a.r_hz.total_cmp(&b.r_hz));
-    det.rejected.sort_by(|a, b| a.freq_hz.total_cmp(&b.freq_hz));
-    Ok(det)
+
+    /// The peak `cands[k]` not taken by a notch: the first resonance, paired with an
+    /// anti-resonance below the band when the phase is spring-like from the first line;
+    /// otherwise rejected.
+    fn pair_peak(&mut self, cands: &[Candidate], k: usize) {
+        let c = cands[k];
+        let (nr, m, min_rise) = (self.nr, self.y.len(), self.min_rise);
+        let (y, ph, f) = (&self.y, &self.ph, &nr.freq_hz);
+        let det = &mut self.det;
+        let first = det.pairs.is_empty() && self.lower_bound == 0;
+        let head = median(&ph[..3.min(m)]);
+        let top = max_smoothed(ph, 0, c.i + 1);
+        if first && head >= min_rise && top >= min_rise {
+            let upper = cands.get(k + 1).map_or(m, |x| x.i);
+            let p = refine_pair(nr, y, None, Some(c), 0, upper, top);
+            self.paired_peaks.push((c.i, p.r_hz, p.r_std_hz));
+            det.notes.push(format!(
+                "resonance at {:.4} Hz: its anti-resonance lies below the lowest \
+                 line ({:.4} Hz); the phase is already spring-like there",
+                p.r_hz, f[0]
+            ));
+            det.pairs.push(p);
+            self.lower_bound = c.i;
+        } else {
+            det.rejected.push(reject(
+                f,
+                &c,
+                "resonance without an anti-resonance below it".into(),
+            ));
+        }
+    }
+
+    /// Step 4: every significant resonance peak, paired or not (a paired one at its
+    /// pair's refined frequency).
+    fn significant_peaks(&self, cands: &[Candidate]) -> Vec<ResonancePeak> {
+        let (y, f, s) = (&self.y, &self.nr.freq_hz, &self.nr.sigma);
+        let paired_peaks = &self.paired_peaks;
+        cands
+            .iter()
+            .filter(|c| c.kind == ExtremumKind::Peak)
+            .map(|c| {
+                let paired = paired_peaks.iter().find(|p| p.0 == c.i);
+                let (freq_hz, std_hz) =
+                    paired.map_or_else(|| parabola(f, y, c.i, 1.0, s), |p| (p.1, p.2));
+                ResonancePeak {
+                    freq_hz,
+                    std_hz,
+                    prominence_db: c.prom * DB,
+                    prominence_sigma: c.prom / c.sigma,
+                    paired: paired.is_some(),
+                }
+            })
+            .collect()
+    }
 }
 
 fn reject(f: &[f64], c: &Candidate, reason: String) -> RejectedCandidate {

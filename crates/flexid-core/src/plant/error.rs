@@ -53,3 +53,38 @@ pub enum PlantError {
     #[error("{0}")]
     Parse(String),
 }
+
+/// Why a plant file's text was refused; every variant names the file (`origin`).
+#[derive(Debug, thiserror::Error)]
+pub enum PlantFileError {
+    /// Not TOML, or not the plant file's shape (unknown keys, wrong types).
+    #[error("{origin}: {source}")]
+    Syntax {
+        /// The file's name (or "embedded default plant").
+        origin: String,
+        /// What the TOML reader said.
+        source: toml::de::Error,
+    },
+    /// The `[chain]` section is invalid.
+    #[error("{origin}: [chain] {source}")]
+    Chain {
+        /// The file's name.
+        origin: String,
+        /// What is wrong with the chain.
+        source: ModelError,
+    },
+    /// An effect or the measurement section is out of range.
+    #[error("{origin}: {source}")]
+    Plant {
+        /// The file's name.
+        origin: String,
+        /// What is wrong.
+        source: PlantError,
+    },
+    /// `[measurement] substeps = 0`.
+    #[error("{origin}: [measurement] substeps must be at least 1")]
+    Substeps {
+        /// The file's name.
+        origin: String,
+    },
+}

@@ -1,7 +1,7 @@
 //! Plant files (TOML): the chain, how it is measured, and optional effects, for
 //! `flexid simulate` and the demo.
 
-use super::{Effects, PlantError, PlantSpec, TimeDelay};
+use super::{Effects, PlantError, PlantFileError, PlantSpec, TimeDelay};
 use crate::model::Chain;
 use crate::sim::SimOptions;
 use serde::Deserialize;
@@ -72,16 +72,24 @@ impl Default for Measurement {
 
 impl PlantFile {
     /// Parse a plant file's text; `origin` names it in errors.
-    pub fn parse(text: &str, origin: &str) -> Result<Self, String> {
-        let p: PlantFile = toml::from_str(text).map_err(|e| format!("{origin}: {e}"))?;
-        p.chain
+    pub fn parse(text: &str, origin: &str) -> Result<Self, PlantFileError> {
+        let origin = || origin.to_string();
+        let p: PlantFile = toml::from_str(text).map_err(|source| PlantFileError::Syntax {
+            origin: origin(),
+            source,
+        })?;
+        p.chain.validate().map_err(|source| PlantFileError::Chain {
+            origin: origin(),
+            source,
+        })?;
+        p.spec()
             .validate()
-            .map_err(|e| format!("{origin}: [chain] {e}"))?;
-        p.spec().validate().map_err(|e| format!("{origin}: {e}"))?;
+            .map_err(|source| PlantFileError::Plant {
+                origin: origin(),
+                source,
+            })?;
         if p.measurement.substeps == Some(0) {
-            return Err(format!(
-                "{origin}: [measurement] substeps must be at least 1"
-            ));
+            return Err(PlantFileError::Substeps { origin: origin() });
         }
         Ok(p)
     }

@@ -18,7 +18,7 @@ pub mod physics;
 mod sim;
 mod spec;
 
-pub use error::PlantError;
+pub use error::{PlantError, PlantFileError};
 pub use file::{simulate_file_positions, Measurement, PlantFile, DEFAULT_PLANT, DEFAULT_SUBSTEPS};
 pub use sim::{run, simulate_positions, AxisSample, PlantSim};
 pub use spec::{

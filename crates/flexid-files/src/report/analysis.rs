@@ -9,15 +9,29 @@ fn pct(std: f64, v: f64) -> String {
     }
 }
 
-/// The analysis as a readable report (units in every heading, uncertainties as one sigma).
+/// The analysis as a readable report (units in every heading, uncertainties as one sigma):
+/// the measured FRF, step 1 (total inertia), the anti-resonance/resonance pairs, the
+/// paper's step-by-step and exact inverses, the identified model with where its
+/// compliance is, and the notes.
 pub fn render_report(a: &Analysis, title: &str) -> String {
     let mut s = String::new();
-    let m = &a.measured;
-    let f = &m.frf;
     let _ = writeln!(s, "flexid identify: {title}");
     if let Some(m) = a.time_cap.as_ref().and_then(|t| t.message()) {
         let _ = writeln!(s, "{m}");
     }
+    measured_section(&mut s, a);
+    total_inertia_section(&mut s, a);
+    pairs_section(&mut s, a);
+    inverse_section(&mut s, a);
+    model_section(&mut s, a);
+    notes_section(&mut s, a);
+    s
+}
+
+/// The measured FRF: estimator, averages, lines, the median line uncertainty.
+fn measured_section(s: &mut String, a: &Analysis) {
+    let m = &a.measured;
+    let f = &m.frf;
     let rel: Vec<f64> = (0..f.len())
         .map(|i| f.relative_std(i))
         .filter(|v| v.is_finite())
@@ -46,6 +60,10 @@ pub fn render_report(a: &Analysis, title: &str) -> String {
             a.delay_samples
         );
     }
+}
+
+/// Step 1: the total inertia and where it came from.
+fn total_inertia_section(s: &mut String, a: &Analysis) {
     let _ = writeln!(s);
     match &a.total_inertia {
         Some(t) => {
@@ -76,6 +94,11 @@ pub fn render_report(a: &Analysis, title: &str) -> String {
             let _ = writeln!(s, "Step 1  total inertia: not determined");
         }
     }
+}
+
+/// The detected anti-resonance/resonance pairs, the most significant rejected candidates
+/// and the significant resonance peaks.
+fn pairs_section(s: &mut String, a: &Analysis) {
     let _ = writeln!(s);
     let _ = writeln!(
         s,
@@ -139,6 +162,10 @@ pub fn render_report(a: &Analysis, title: &str) -> String {
             );
         }
     }
+}
+
+/// The paper's step-by-step inverse and the exact (Cauer) inverse.
+fn inverse_section(s: &mut String, a: &Analysis) {
     if let Some(p) = &a.paper {
         let _ = writeln!(s);
         let _ = writeln!(
@@ -164,6 +191,11 @@ pub fn render_report(a: &Analysis, title: &str) -> String {
         let _ = writeln!(s, "  J [kg m^2] = {}", list(&e.inertia_kgm2));
         let _ = writeln!(s, "  c [N m/rad] = {}", list(&e.stiffness_nm_per_rad));
     }
+}
+
+/// The identified model: inertias, stiffnesses and dampings with one sigma, its modes,
+/// where the compliance is, and the model orders tried.
+fn model_section(s: &mut String, a: &Analysis) {
     if let (Some(fit), Some(model)) = (&a.fit, &a.model) {
         let _ = writeln!(s);
         let _ = writeln!(
@@ -263,6 +295,10 @@ pub fn render_report(a: &Analysis, title: &str) -> String {
             let _ = writeln!(s, "Model order: {}", items.join(", "));
         }
     }
+}
+
+/// The notes of the analysis.
+fn notes_section(s: &mut String, a: &Analysis) {
     if !a.notes.is_empty() {
         let _ = writeln!(s);
         let _ = writeln!(s, "Notes:");
@@ -270,7 +306,6 @@ pub fn render_report(a: &Analysis, title: &str) -> String {
             let _ = writeln!(s, "  - {n}");
         }
     }
-    s
 }
 
 fn freq(v: f64, std: f64, bound: bool, sign: &str) -> String {

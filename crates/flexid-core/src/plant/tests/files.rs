@@ -27,7 +27,9 @@ fn example_plant_files_parse_and_simulate() {
         }
         let p = std::fs::read_to_string(&path)
             .map_err(|e| e.to_string())
-            .and_then(|t| PlantFile::parse(&t, &path.display().to_string()))
+            .and_then(|t| {
+                PlantFile::parse(&t, &path.display().to_string()).map_err(|e| e.to_string())
+            })
             .unwrap_or_else(|e| panic!("{e}"));
         if p.has_effects() {
             seen += 1;
@@ -193,7 +195,7 @@ fn bad_input_is_an_error_not_a_panic() {
         Err(PlantError::Unstable { .. })
     ));
     assert!(PlantSim::new(&base, 200.0, 10, 1).is_ok());
-    assert!(PlantFile::parse("[chain]\ninertia_kgm2 = [1e-3]\nstiffness_nm_per_rad = []\ndamping_nms_per_rad = []\n[effects.backlash]\ncoupling = 0\nhalf_gap_rad = 1e-3\n", "x.toml").unwrap_err().starts_with("x.toml: "));
+    assert!(PlantFile::parse("[chain]\ninertia_kgm2 = [1e-3]\nstiffness_nm_per_rad = []\ndamping_nms_per_rad = []\n[effects.backlash]\ncoupling = 0\nhalf_gap_rad = 1e-3\n", "x.toml").unwrap_err().to_string().starts_with("x.toml: "));
     // a non-finite command does not panic
     let mut sim = PlantSim::new(&base, 2000.0, 10, 1).unwrap();
     sim.step(f64::NAN);

@@ -194,10 +194,25 @@ async fn abort_mid_sweep_keeps_the_partial_recording() {
     assert_eq!(ended.data["reason"], "operator abort");
     let st: serde_json::Value = get_json(&d.url(&format!("/api/v1/sweeps/{id}"))).await;
     assert_eq!(st["state"], "aborted");
-    // the partial recording is downloadable and parses; it ends with the ramp to zero
+    // the partial recording is downloadable and parses; the torque was ramped to zero
+    // after its last row (the one sweep loop's ramp, 1 % of the cycle rate and at least 5
+    // cycles, run in full; as on a CANopen drive, tests/daemon_kill.rs)
     let rec = get_recording(&d.url(""), &id).await;
     assert!(rec.len() >= 4000 && rec.len() < 20_000, "{}", rec.len());
-    assert_eq!(*rec.torque_cmd_nm.last().unwrap(), 0.0);
+    let end = rec.sidecar.end.as_ref().expect("end");
+    let cycles = rec.sidecar.cycle_counters.expect("counters").cycles;
+    assert!(!end.complete);
+    assert!(
+        rec.len() as u64 >= end.cycle,
+        "{} rows, end {}",
+        rec.len(),
+        end.cycle
+    );
+    assert_eq!(
+        cycles,
+        rec.len() as u64 + 10,
+        "ramp of 10 cycles at 1 kHz after the last row"
+    );
     assert_eq!(rec.sidecar.ended_because.as_deref(), Some("operator abort"));
     // aborting again: 409 (not running)
     let r = auth(client().post(d.url(&format!("/api/v1/sweeps/{id}/abort"))))

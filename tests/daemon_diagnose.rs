@@ -161,7 +161,7 @@ async fn sim_backend_two_level_sweep_names_backlash() {
     let backend =
         flexid::daemon::SimBackend::from_plant_file(Some(&plant("e2e_backlash.toml"))).unwrap();
     assert!(
-        backend.effects.is_some(),
+        backend.plant.effects.is_some(),
         "the plant's backlash is simulated"
     );
     let (tx, rx) = tokio::sync::oneshot::channel::<()>();

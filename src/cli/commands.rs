@@ -43,7 +43,7 @@ pub fn bode(a: &BodeArgs) -> Result<(), CliError> {
     Ok(())
 }
 
-pub(crate) fn simulate_to(
+fn simulate_to(
     plant: &PlantFile,
     torque: &[f64],
     sidecar: crate::recording::Sidecar,

@@ -5,17 +5,11 @@
 //! not kept on loopback and not root), it says so and measures the in-process simulation
 //! instead.
 
-use super::commands::simulate_to;
 use super::excite::{write_excitation, Excitation};
 use super::plant::PlantFile;
-use super::results::{run_analysis, write_json, write_svg};
 use super::sweep::{plan, sweep_run, ClockArg, ExcitationArg, SweepArgs};
 use super::{CliError, DemoArgs};
 use crate::analysis::Analysis;
-use crate::analysis::AnalysisOptions;
-use crate::excitation::MultisineDesign;
-use crate::recording::write_recording;
-use crate::report::render_report;
 use std::io::{BufRead, BufReader};
 use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};
@@ -180,31 +174,33 @@ pub(super) fn print_truth(an: &Analysis, plant: &PlantFile) {
     }
 }
 
-/// `flexid demo`: over the bus when possible, else the in-process simulation.
+/// `flexid demo`: the sweep over the bus (CANopen to `flexid-vdrive`) when possible,
+/// else the same sweep on the in-process simulated drive; then the identified table next
+/// to the plant's true values. Both run the one sweep loop (`flexid_sweep::run_sweep`).
 pub fn demo(a: &DemoArgs) -> Result<(), CliError> {
     let plant = flexid_files::plant::load_plant_file(a.plant.as_deref())
         .map_err(|e| CliError::input(e.to_string()))?;
+    std::fs::create_dir_all(&a.out)
+        .map_err(|e| CliError::failed(format!("{}: {e}", a.out.display())))?;
     let ready = sibling_vdrive()
         .and_then(|bin| flexid_can::keep_multicast_on_loopback(GROUP).map(|()| bin));
-    let bin = match ready {
-        Ok(bin) => bin,
+    let vdrive = match ready {
+        Ok(bin) => Some(bin),
         Err(why) => {
             eprintln!(
                 "flexid demo: the CAN bus cannot be used here: {why}.\n\
-                 flexid demo: falling back to the in-process simulation (no CANopen, no drive)."
+                 flexid demo: falling back to the simulated drive in-process (no CANopen)."
             );
-            return demo_simulated(a);
+            None
         }
     };
-    std::fs::create_dir_all(&a.out)
-        .map_err(|e| CliError::failed(format!("{}: {e}", a.out.display())))?;
     // Its own port, so that demos and tests can run side by side.
     let port = 43300 + (std::process::id() % 600) as u16;
     let bus = format!("udp:{GROUP}:{port}");
     let args = demo_sweep_args(&plant, bus.clone(), a.out.clone());
     if args.cycle_hz < plant.measurement.sample_rate_hz {
         eprintln!(
-            "flexid demo: measuring at {} Hz on a 1 Mbit/s bus (the plant file's {} Hz cycle \
+            "flexid demo: measuring at {} Hz as on a 1 Mbit/s bus (the plant file's {} Hz cycle \
              is above the demo's rate: 2 kHz would need 76 % of the bus, 70 % is admitted)",
             args.cycle_hz, plant.measurement.sample_rate_hz
         );
@@ -221,104 +217,40 @@ pub fn demo(a: &DemoArgs) -> Result<(), CliError> {
             info: p.excitation.clone(),
         },
     )?;
-    eprintln!(
-        "flexid demo: {} — flexid-vdrive (CiA 402 over CANopen) on {bus}, lock-step",
-        plant.name.as_deref().unwrap_or("plant")
-    );
-    let vd = match start_vdrive(&bin, &bus, a.plant.as_ref()) {
-        Ok(v) => v,
-        Err(why) => {
+    let name = plant.name.as_deref().unwrap_or("plant");
+    let started = vdrive.map(|bin| start_vdrive(&bin, &bus, a.plant.as_ref()));
+    let (run, how) = match started {
+        Some(Ok(vd)) => {
             eprintln!(
-                "flexid demo: the simulated drive could not be started: {why}.\n\
-                 flexid demo: falling back to the in-process simulation (no CANopen, no drive)."
+                "flexid demo: {name} — flexid-vdrive (CiA 402 over CANopen) on {bus}, lock-step"
             );
-            return demo_simulated(a);
+            let run = sweep_run(&args);
+            drop(vd);
+            (run?, "over CANopen")
+        }
+        other => {
+            if let Some(Err(why)) = other {
+                eprintln!(
+                    "flexid demo: the simulated drive could not be started: {why}.\n\
+                     flexid demo: falling back to the simulated drive in-process (no CANopen)."
+                );
+            }
+            eprintln!("flexid demo: {name} — the simulated drive in-process, lock-step");
+            (
+                super::sweep::sweep_run_simulated(&args, &plant, a.seed)?,
+                "in-process (no CANopen)",
+            )
         }
     };
-    let run = sweep_run(&args);
-    drop(vd);
-    let run = run?;
     if let Some(an) = &run.analysis {
         print_truth(an, &plant);
     }
     println!(
-        "\nmeasured over CANopen in lock-step: {} cycles at {:.0} cycles/s\nwrote {}, {}, {} and {}",
+        "\nmeasured {how} in lock-step: {} cycles at {:.0} cycles/s\nwrote {}, {}, {} and {}",
         run.outcome.recording.len(),
         run.outcome.cycles_per_s(),
         exc_path.display(),
         run.recording_path.display(),
-        a.out.join("result.json").display(),
-        a.out.join("bode.svg").display()
-    );
-    Ok(())
-}
-
-/// A multisine that resolves the plant: line spacing a twelfth of the lowest anti-resonance,
-/// band up to 2.5 x the highest resonance (at most 0.4 fs).
-fn demo_excitation(plant: &PlantFile) -> Result<Excitation, CliError> {
-    let fs = plant.measurement.sample_rate_hz;
-    let ar = plant.chain.antiresonances_hz();
-    let r = plant.chain.resonances_hz();
-    let df = ar.first().map_or(1.0, |f| f / 12.0);
-    let period = ((fs / df).ceil() as usize).max(64);
-    let df = fs / period as f64;
-    let hi = r.last().map_or(0.4 * fs, |f| (2.5 * f).min(0.4 * fs));
-    let mut d = MultisineDesign::new(fs, period, [df, hi], 2.0, 1.0);
-    d.crest_iterations = 30;
-    // amplitude rising with frequency: the mobility falls as 1/f, so the velocity (and the
-    // signal-to-quantisation ratio of the differenced encoder) stays level over the band
-    d.amplitude = crate::excitation::AmplitudeShape::PowerLaw { exponent: 1.0 };
-    let ms = d
-        .generate()
-        .map_err(|e| CliError::failed(format!("excitation: {e}")))?;
-    Ok(Excitation {
-        torque_nm: ms.repeat(9),
-        info: ms.info(8, 1),
-    })
-}
-
-/// `flexid demo` without a bus: the plant simulated in-process (`flexid::sim`: exact ZOH,
-/// encoder quantisation, noise), measured and identified.
-pub(crate) fn demo_simulated(a: &DemoArgs) -> Result<(), CliError> {
-    let plant = flexid_files::plant::load_plant_file(a.plant.as_deref())
-        .map_err(|e| CliError::input(e.to_string()))?;
-    std::fs::create_dir_all(&a.out)
-        .map_err(|e| CliError::failed(format!("{}: {e}", a.out.display())))?;
-    let fs = plant.measurement.sample_rate_hz;
-    let ex = demo_excitation(&plant)?;
-    let exc_path = a.out.join("excitation.csv");
-    write_excitation(&exc_path, fs, &ex)?;
-    eprintln!(
-        "flexid demo: {} — multisine {} lines {:.3}-{:.1} Hz, {} periods of {} samples at {} Hz ({:.1} s)",
-        plant.name.as_deref().unwrap_or("plant"),
-        ex.info.excited_lines.len(),
-        ex.info.band_hz.map_or(0.0, |b| b[0]),
-        ex.info.band_hz.map_or(0.0, |b| b[1]),
-        ex.info.periods + ex.info.transient_periods,
-        ex.info.period_samples,
-        fs,
-        ex.torque_nm.len() as f64 / fs
-    );
-    let sidecar = crate::recording::Sidecar {
-        excitation: Some(ex.info.clone()),
-        ..Default::default()
-    };
-    let rec = simulate_to(&plant, &ex.torque_nm, sidecar, a.seed)?;
-    let rec_path = a.out.join("recording.csv");
-    write_recording(&rec_path, &rec).map_err(|e| CliError::failed(e.to_string()))?;
-    let an = run_analysis(&rec, &AnalysisOptions::default())?;
-    print!("{}", render_report(&an, &rec_path.display().to_string()));
-    print_truth(&an, &plant);
-    write_json(&an, &a.out.join("result.json"))?;
-    write_svg(
-        &an,
-        "flexid demo: simulated SCARA shoulder",
-        &a.out.join("bode.svg"),
-    )?;
-    println!(
-        "\nwrote {}, {}, {} and {}",
-        exc_path.display(),
-        rec_path.display(),
         a.out.join("result.json").display(),
         a.out.join("bode.svg").display()
     );

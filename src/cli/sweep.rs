@@ -3,10 +3,11 @@
 
 use super::excite::{generate, ExciteArgs, ExciteKind, MultisineArgs};
 use super::{CliError, ModelArgs};
+use crate::plant::PlantFile;
 use crate::recording::{write_recording, DriveInfo};
 use crate::sweep::{
     admission_check, realtime_setup, run_sweep, run_sweep_on_cycle_thread, Pacing, Progress,
-    SweepOutcome, SweepPlan,
+    SimulatedPlant, SweepOutcome, SweepPlan,
 };
 use flexid_can::{CanBus, UdpMulticastBus};
 use flexid_canopen::{bring_up, MasterConfig, ProfileSet};
@@ -285,23 +286,7 @@ pub fn sweep_run(a: &SweepArgs) -> Result<SweepRun, CliError> {
             .load_dir(dir)
             .map_err(|e| CliError::input(e.to_string()))?;
     }
-    let info = &plan.excitation;
-    eprintln!(
-        "flexid sweep: {:?} {} lines {:.3}-{:.1} Hz, {} + {} periods of {} cycles at {} Hz ({:.1} s), peak {:.3} N m; bus load {:.1} % at {} bit/s; clock {}",
-        info.kind,
-        info.excited_lines.len(),
-        info.band_hz.map_or(0.0, |b| b[0]),
-        info.band_hz.map_or(0.0, |b| b[1]),
-        info.transient_periods,
-        info.periods,
-        info.period_samples,
-        a.cycle_hz,
-        plan.duration_s(),
-        crate::excitation::peak_abs(&plan.torque_nm),
-        100.0 * load,
-        a.bitrate,
-        plan.pacing.name()
-    );
+    print_plan(a, &plan, Some(load));
     install_signal_handlers();
     let name = spec.describe();
     let measured = match &spec {
@@ -316,7 +301,71 @@ pub fn sweep_run(a: &SweepArgs) -> Result<SweepRun, CliError> {
         BusSpec::SocketCan(_) => Err(CliError::input("SocketCAN is Linux only")),
     };
     restore_signal_handlers();
-    let (mut outcome, drive_info) = measured?;
+    let (outcome, drive_info) = measured?;
+    save_and_identify(outcome, drive_info, a)
+}
+
+/// The sweep of `a` on the CAN-free simulated drive in front of `plant` (noise seed
+/// `seed`), in-process: the same loop, files and identification as over the bus, without
+/// CANopen (the demo where no bus can be used).
+pub fn sweep_run_simulated(
+    a: &SweepArgs,
+    plant: &PlantFile,
+    seed: u64,
+) -> Result<SweepRun, CliError> {
+    if a.masses == Some(0) {
+        return Err(CliError::input("--masses must be at least 1"));
+    }
+    let plan = plan(a)?;
+    print_plan(a, &plan, None);
+    let mut drive = SimulatedPlant::of_file(plant)
+        .drive(a.cycle_hz, seed)
+        .map_err(|e| CliError::failed(format!("simulated plant: {e}")))?;
+    let info = DriveInfo {
+        bus: "simulated".into(),
+        node: a.node,
+        profile: "simulated drive (in-process, no CANopen)".into(),
+        rated_torque_nm: flexid_canopen::CyclicDrive::rated_torque_nm(&drive),
+        cycle_hz: a.cycle_hz,
+        clock: plan.pacing.name().into(),
+        ..DriveInfo::default()
+    };
+    install_signal_handlers();
+    let outcome = run_sweep(&mut drive, &plan, &STOP, &mut progress_line);
+    restore_signal_handlers();
+    save_and_identify(outcome, info, a)
+}
+
+/// The sweep's one-line summary on stderr: excitation, periods, rate, peak torque, and
+/// the bus load where there is a bus.
+fn print_plan(a: &SweepArgs, plan: &SweepPlan, bus_load: Option<f64>) {
+    let info = &plan.excitation;
+    let bus = match bus_load {
+        Some(load) => format!("bus load {:.1} % at {} bit/s", 100.0 * load, a.bitrate),
+        None => "no bus (simulated drive in-process)".into(),
+    };
+    eprintln!(
+        "flexid sweep: {:?} {} lines {:.3}-{:.1} Hz, {} + {} periods of {} cycles at {} Hz ({:.1} s), peak {:.3} N m; {bus}; clock {}",
+        info.kind,
+        info.excited_lines.len(),
+        info.band_hz.map_or(0.0, |b| b[0]),
+        info.band_hz.map_or(0.0, |b| b[1]),
+        info.transient_periods,
+        info.periods,
+        info.period_samples,
+        a.cycle_hz,
+        plan.duration_s(),
+        crate::excitation::peak_abs(&plan.torque_nm),
+        plan.pacing.name()
+    );
+}
+
+/// Saves the recording into `a.out` and, when the sweep completed, identifies it.
+fn save_and_identify(
+    mut outcome: SweepOutcome,
+    drive_info: DriveInfo,
+    a: &SweepArgs,
+) -> Result<SweepRun, CliError> {
     let recording_path = save(&mut outcome, drive_info, &a.out)?;
     if !outcome.complete() {
         return Err(CliError::failed(format!(

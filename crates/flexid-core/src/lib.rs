@@ -12,6 +12,7 @@
 //!   FRF, discrete-time simulation).
 //! * [`identify`]: total inertia, AR/R pair detection, the paper's step-by-step algorithm,
 //!   the exact (Cauer) inverse and the Levenberg-Marquardt refinement.
+//! * [`lsq`]: the one Levenberg-Marquardt solver, shared by identification and diagnosis.
 //! * [`recording`]: the recording's types, its CSV/JSON parser over any reader and its
 //!   formatter over any writer (`flexid-files` opens and replaces the files).
 //! * [`analysis`]: the measured FRF of a recording and the identified chain, with the
@@ -31,6 +32,7 @@ pub mod diagnose;
 pub mod excitation;
 pub mod frf;
 pub mod identify;
+pub mod lsq;
 pub mod model;
 pub mod plant;
 pub mod recording;

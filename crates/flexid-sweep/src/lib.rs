@@ -22,6 +22,6 @@ pub use plan::{admission_check, default_heartbeats, Pacing, SweepPlan};
 pub use run::{
     realtime_setup, run_sweep, run_sweep_on_cycle_thread, Progress, StopReason, SweepOutcome,
 };
-pub use simulated::{SimulatedDrive, SimulatedFault};
+pub use simulated::{SimulatedDrive, SimulatedFault, SimulatedPlant};
 
 pub use flexid_core::recording::RecordingEnd;

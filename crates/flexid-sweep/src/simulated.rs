@@ -5,7 +5,8 @@
 use flexid_canopen::cia402::State;
 use flexid_canopen::{Counters, CyclicDrive, Feedback};
 use flexid_core::model::{Chain, ModelError};
-use flexid_core::plant::physics::{LinearChain, Physics, PhysicsError};
+use flexid_core::plant::physics::{LinearChain, Physics, PhysicsError, TorqueNoise};
+use flexid_core::plant::{PlantFile, PlantSim, PlantSpec};
 use std::time::{Duration, Instant};
 
 /// A fault injected into a [`SimulatedDrive`] (an EMCY as a real drive would send).
@@ -136,5 +137,67 @@ impl CyclicDrive for SimulatedDrive {
 
     fn counters(&self) -> Counters {
         self.counters
+    }
+}
+
+/// A plant to put behind a [`SimulatedDrive`]: the chain, the plant file's disturbance
+/// torque, encoder and initial drift, and its unmodelled effects when it has any. The
+/// daemon's simulated axes and the demo without a bus measure through it.
+#[derive(Debug, Clone)]
+pub struct SimulatedPlant {
+    /// The chain (the linear part).
+    pub chain: Chain,
+    /// RMS of a white disturbance torque [N m] (the linear path; with effects, the spec
+    /// carries it).
+    pub torque_noise_nm: f64,
+    /// Encoder resolution [counts/rev]; `None` for an ideal encoder (the linear path).
+    pub encoder_counts_per_rev: Option<u64>,
+    /// Velocity of every body at the start [rad/s].
+    pub initial_velocity_rad_s: f64,
+    /// The plant with its effects and the RK4 sub-steps per cycle, simulated by
+    /// [`PlantSim`] instead of the exact linear chain. `None`: the linear chain.
+    pub effects: Option<(PlantSpec, u32)>,
+}
+
+impl SimulatedPlant {
+    /// The exact linear chain, ideal encoder, no noise.
+    pub fn linear(chain: Chain) -> Self {
+        SimulatedPlant {
+            chain,
+            torque_noise_nm: 0.0,
+            encoder_counts_per_rev: None,
+            initial_velocity_rad_s: 0.0,
+            effects: None,
+        }
+    }
+
+    /// The plant of a plant file: its chain, measurement noise torque, encoder, initial
+    /// velocity and effects.
+    pub fn of_file(p: &PlantFile) -> Self {
+        SimulatedPlant {
+            chain: p.chain.clone(),
+            torque_noise_nm: p.measurement.torque_noise_nm,
+            encoder_counts_per_rev: p.measurement.encoder_counts_per_rev,
+            initial_velocity_rad_s: p.measurement.initial_velocity_rad_s,
+            effects: p.has_effects().then(|| (p.spec(), p.substeps())),
+        }
+    }
+
+    /// The drive in front of this plant at `cycle_hz` [Hz], noise seed `seed`.
+    pub fn drive(&self, cycle_hz: f64, seed: u64) -> Result<SimulatedDrive, PhysicsError> {
+        if let Some((spec, substeps)) = &self.effects {
+            let mut sim = PlantSim::new(spec, cycle_hz, *substeps, seed)
+                .map_err(|e| PhysicsError::Plant(e.to_string()))?;
+            sim.set_initial_velocity(self.initial_velocity_rad_s);
+            return Ok(SimulatedDrive::on(Box::new(sim), cycle_hz));
+        }
+        let mut chain = LinearChain::new(&self.chain, cycle_hz)?;
+        chain.set_velocity(self.initial_velocity_rad_s);
+        let noisy = TorqueNoise::new(chain, self.torque_noise_nm, seed);
+        let drive = SimulatedDrive::on(Box::new(noisy), cycle_hz);
+        Ok(match self.encoder_counts_per_rev {
+            Some(c) => drive.with_encoder(c as f64),
+            None => drive,
+        })
     }
 }

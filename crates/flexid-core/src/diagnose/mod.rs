@@ -9,7 +9,6 @@ pub mod distortion;
 mod effect;
 pub mod effects;
 pub mod json;
-pub mod lm;
 pub mod localise;
 pub mod lti;
 pub mod nlsim;

@@ -22,9 +22,9 @@ pub use super::budget::{BudgetSnapshot, FitBudget, NOT_TRIED};
 pub use super::chain_fit::{ChainFit, ChainStd};
 use super::error::IdentifyError;
 use super::lines::{fallback_sigma, sample_rate, sigma_log, usable_lines, RigidReference};
-use super::lm::{self, LmOptions, LmWorkspace};
 use super::problem::{chain_of_theta, ChainProblem, FitData};
 use crate::frf::{Frf, FrfKind};
+use crate::lsq::lm::{self, Damping, LmOptions, LmWorkspace};
 use crate::model::Chain;
 use levenberg_marquardt::LeastSquaresProblem;
 use nalgebra::{DMatrix, DVector};
@@ -113,6 +113,7 @@ pub(super) fn fit_chain_coarse(
         xtol: 1e-8,
         gtol: 1e-10,
         max_evals: opts.max_iter.div_ceil(np + 1).max(1) * (np + 1),
+        damping: Damping::Nielsen,
     };
     let stride = data.z.len() / coarse_lines.max(1);
     let mut last_err = String::from("no start");

@@ -18,7 +18,6 @@ pub mod fit;
 pub mod inertia;
 mod jet;
 mod lines;
-mod lm;
 mod local_fit;
 pub mod paper;
 mod problem;

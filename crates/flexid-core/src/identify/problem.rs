@@ -681,3 +681,33 @@ impl LeastSquaresProblem<f64, Dyn, Dyn> for ChainProblem<'_> {
         }
     }
 }
+
+/// The chain fit as the shared solver sees it ([`crate::lsq::lm`]).
+impl crate::lsq::NormalEquations for ChainProblem<'_> {
+    type Scratch = LineScratch;
+
+    fn scratch(&self) -> LineScratch {
+        ChainProblem::scratch(self)
+    }
+
+    fn set_theta(&mut self, theta: &[f64]) {
+        ChainProblem::set_theta(self, theta)
+    }
+
+    fn cost(&mut self, s: &mut LineScratch) -> Option<f64> {
+        ChainProblem::cost(self, s)
+    }
+
+    fn normal_after_cost(&mut self, s: &mut LineScratch, jtj: &mut [f64], jtr: &mut [f64]) -> bool {
+        ChainProblem::normal_after_cost(self, s, jtj, jtr)
+    }
+
+    fn normal_equations(
+        &mut self,
+        s: &mut LineScratch,
+        jtj: &mut [f64],
+        jtr: &mut [f64],
+    ) -> Option<f64> {
+        ChainProblem::normal_equations(self, s, jtj, jtr)
+    }
+}

@@ -3,9 +3,9 @@
 //! same optimum, same normal matrix, same covariance.
 
 use super::fit::{fit_chain, fit_chain_coarse, invert_spd, prepare, theta_of, FitOptions};
-use super::lm::{minimize, LmOptions, LmWorkspace};
 use super::problem::ChainProblem;
 use super::tests_fit::{four_mass, grid_for, perturbed, simulate, three_mass, two_mass};
+use crate::lsq::lm::{minimize, LmOptions, LmWorkspace};
 use crate::model::Chain;
 use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
 use nalgebra::{DMatrix, DVector};
@@ -15,6 +15,7 @@ const TIGHT: LmOptions = LmOptions {
     xtol: 1e-10,
     gtol: 1e-12,
     max_evals: 400,
+    damping: crate::lsq::Damping::Nielsen,
 };
 
 /// Several problems: 2/3/4 masses, noise-free and with 2 % / 5 % noise.

@@ -61,7 +61,7 @@ pub fn from_ground_body(data: &Data, chain: &Chain) -> Option<EffectFit> {
     Some(finish(data, m, &r))
 }
 
-fn finish(data: &Data, m: LinExt, r: &crate::diagnose::lm::LmResult) -> EffectFit {
+fn finish(data: &Data, m: LinExt, r: &crate::lsq::LmResult) -> EffectFit {
     let i0 = 3 * m.chain.masses() - 2;
     let p = vec![
         Param {

@@ -14,10 +14,10 @@ pub mod gravity;
 pub mod hardening;
 pub mod mode;
 
-use super::lm::{minimise, LmResult};
 use super::lti::{Discrete, LinExt, Loop};
 use super::Data;
 use crate::diagnose::Effect;
+use crate::lsq::{minimise, LmResult};
 use crate::model::Chain;
 use num_complex::Complex64;
 use serde::Serialize;

@@ -11,10 +11,10 @@
 //! [`PREFIT_ITERS`] iterations of the body alone the starts near the true pair lead.
 
 use super::{build, finish_linear, fit_linear, residuals, theta, EffectFit, Lin, Param};
-use crate::diagnose::lm::{minimise, LmResult};
 use crate::diagnose::lti::LinExt;
 use crate::diagnose::Data;
 use crate::diagnose::Effect;
+use crate::lsq::{minimise, LmResult};
 use crate::model::Chain;
 
 /// LM iterations of the appended body alone (inertia, spring, damper) per start.

@@ -1,11 +1,15 @@
-//! The fit's own Levenberg-Marquardt solver on the normal equations.
+//! flexid's Levenberg-Marquardt solver on the normal equations, for every least-squares
+//! fit of the project: the chain fit of the identification ([`crate::identify`], whose
+//! `ChainProblem` accumulates the normal equations analytically) and the diagnosis's joint
+//! refits ([`super::residuals`], normal equations from a residual closure by forward
+//! differences).
 //!
 //! Why the normal equations (Marquardt's scaled damping `(A + lambda D^2) delta = -g`,
 //! `A = J^T J`, `g = J^T r`, `D^2 = diag A` with Moré's running maximum) solved by a Cholesky
 //! factorisation of the `P x P` matrix, and not Moré's QR-based trust region (MINPACK,
 //! the `levenberg-marquardt` crate): the chain fit has `2 x 3200` residuals and `P = 7`
 //! parameters. `A` and `g` are accumulated while the residuals and the analytic Jacobian
-//! rows are computed (`ChainProblem::normal_equations`), `N P^2` multiply-adds that stream
+//! rows are computed (the identification's `ChainProblem`), `N P^2` multiply-adds that stream
 //! through the lines once; the `N x P` Jacobian is never stored and its pivoted QR
 //! (`2 N P^2` flops plus the copy, about half of the former fit time) disappears. Each
 //! damping change then costs a `7 x 7` Cholesky, nothing proportional to `N`. The price of
@@ -16,51 +20,105 @@
 //! Nielsen's (smooth decrease by the gain ratio, doubling increase), which needs no
 //! trust-region radius bookkeeping.
 //!
-//! A trial step is evaluated by its cost alone (`ChainProblem::cost`); the normal equations
+//! A trial step is evaluated by its cost alone ([`NormalEquations::cost`]); the normal equations
 //! are accumulated only when the step is accepted, from the per-line quantities the cost
-//! pass left behind (`ChainProblem::normal_after_cost`), so that a rejected step costs no
+//! pass left behind ([`NormalEquations::normal_after_cost`]), so that a rejected step costs no
 //! Jacobian pass.
 //!
 //! All buffers live in [`LmWorkspace`], planned once per fit: an iteration allocates
 //! nothing in the solver and the line pass.
 
-use super::problem::{ChainProblem, LineScratch};
+/// A least-squares problem as the solver sees it: the cost `sum r^2` at the current
+/// parameters and the normal equations `J^T J`, `J^T r` there. `Scratch` holds what a cost
+/// pass leaves for the normal-equation pass after it (planned once per fit).
+pub trait NormalEquations {
+    /// Per-evaluation buffers.
+    type Scratch;
+    /// Buffers sized for this problem.
+    fn scratch(&self) -> Self::Scratch;
+    /// Move to the parameters `theta`.
+    fn set_theta(&mut self, theta: &[f64]);
+    /// The cost at the current parameters; `None` where the model is invalid or the cost
+    /// is not finite.
+    fn cost(&mut self, s: &mut Self::Scratch) -> Option<f64>;
+    /// The normal equations (`jtj` `P x P` row-major, `jtr`) at the parameters of the last
+    /// [`NormalEquations::cost`]; `false` where they are not finite.
+    fn normal_after_cost(
+        &mut self,
+        s: &mut Self::Scratch,
+        jtj: &mut [f64],
+        jtr: &mut [f64],
+    ) -> bool;
+    /// The cost and the normal equations.
+    fn normal_equations(
+        &mut self,
+        s: &mut Self::Scratch,
+        jtj: &mut [f64],
+        jtr: &mut [f64],
+    ) -> Option<f64> {
+        let cost = self.cost(s)?;
+        self.normal_after_cost(s, jtj, jtr).then_some(cost)
+    }
+}
+
+/// How the damping `lambda` of [`minimize`] moves and what scales it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Damping {
+    /// Nielsen's smooth update from the gain ratio (doubling on a rejected step), scaled by
+    /// Moré's running maximum of `diag(J^T J)`; stops on `ftol`, `xtol` and `gtol`. The
+    /// chain fit's.
+    #[default]
+    Nielsen,
+    /// Marquardt's schedule: `lambda` times 0.3 after an accepted step and 10 after a
+    /// rejected one, scaled by the current `diag(J^T J)`; stops when an accepted step
+    /// lowers the cost by less than `ftol` of it, after 8 rejected steps in a row, or after
+    /// `max_steps` accepted steps. The diagnosis's refits.
+    Marquardt {
+        /// Accepted steps (each a new Jacobian) at most.
+        max_steps: usize,
+    },
+}
 
 /// Convergence tolerances and budget of [`minimize`].
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) struct LmOptions {
+pub struct LmOptions {
     /// Stop when both the actual and the predicted relative cost reduction of a step are
     /// below this.
-    pub(crate) ftol: f64,
+    pub ftol: f64,
     /// Stop when the scaled step is below this relative to the scaled parameters.
-    pub(crate) xtol: f64,
+    pub xtol: f64,
     /// Stop when the cosine between the residual and every Jacobian column is below this.
-    pub(crate) gtol: f64,
+    pub gtol: f64,
     /// Maximum number of model evaluations (each one residuals and normal equations).
-    pub(crate) max_evals: usize,
+    pub max_evals: usize,
+    /// The damping schedule.
+    pub damping: Damping,
 }
 
 /// Result of [`minimize`].
 #[derive(Debug, Clone, PartialEq)]
-pub(crate) struct LmOutcome {
+pub struct LmOutcome {
     /// Cost `sum r^2` at the end.
-    pub(crate) cost: f64,
+    pub cost: f64,
     /// Model evaluations used.
-    pub(crate) evaluations: usize,
+    pub evaluations: usize,
     /// Whether a tolerance was met (otherwise the budget ran out or the damping blew up).
-    pub(crate) converged: bool,
+    pub converged: bool,
     /// Whether the caller's stop condition ended the run ([`minimize_until`]).
-    pub(crate) stopped: bool,
+    pub stopped: bool,
 }
+
+/// Dampings tried for one Jacobian under [`Damping::Marquardt`] before the fit ends.
+const MARQUARDT_TRIES: usize = 8;
 
 /// Buffers of [`minimize`], sized for `P` parameters once.
 #[derive(Debug, Clone)]
-pub(crate) struct LmWorkspace {
+pub struct LmWorkspace<S> {
     np: usize,
     /// Current parameters (the result after [`minimize`]).
-    pub(crate) theta: Vec<f64>,
+    pub theta: Vec<f64>,
     /// `J^T J` at `theta` (row-major, `P x P`).
-    pub(crate) jtj: Vec<f64>,
+    pub jtj: Vec<f64>,
     jtr: Vec<f64>,
     trial: Vec<f64>,
     jtj_trial: Vec<f64>,
@@ -68,12 +126,12 @@ pub(crate) struct LmWorkspace {
     chol: Vec<f64>,
     step: Vec<f64>,
     diag: Vec<f64>,
-    lines: LineScratch,
+    lines: S,
 }
 
-impl LmWorkspace {
-    /// Workspace for `problem`'s parameter count.
-    pub(crate) fn new(problem: &ChainProblem<'_>, np: usize) -> Self {
+impl<S> LmWorkspace<S> {
+    /// Workspace for `problem` with `np` parameters.
+    pub fn new<P: NormalEquations<Scratch = S>>(problem: &P, np: usize) -> Self {
         LmWorkspace {
             np,
             theta: vec![0.0; np],
@@ -135,22 +193,22 @@ fn cholesky_solve(l: &[f64], n: usize, x: &mut [f64]) {
 /// Minimise `problem`'s cost from `theta0`; the optimum is left in `ws.theta` and `ws.jtj`
 /// (`problem` itself is left at the last parameters tried).
 /// `Err` with a reason when the cost is not finite at the start.
-pub(crate) fn minimize(
-    problem: &mut ChainProblem<'_>,
+pub fn minimize<P: NormalEquations>(
+    problem: &mut P,
     theta0: &[f64],
     opts: &LmOptions,
-    ws: &mut LmWorkspace,
+    ws: &mut LmWorkspace<P::Scratch>,
 ) -> Result<LmOutcome, String> {
     minimize_until(problem, theta0, opts, ws, &|_, _, _, _| false)
 }
 
 /// [`minimize`] that also stops (with [`LmOutcome::stopped`]) as soon as
 /// `stop(theta, cost, previous cost, evaluations)` holds after an accepted step.
-pub(crate) fn minimize_until(
-    problem: &mut ChainProblem<'_>,
+pub fn minimize_until<P: NormalEquations>(
+    problem: &mut P,
     theta0: &[f64],
     opts: &LmOptions,
-    ws: &mut LmWorkspace,
+    ws: &mut LmWorkspace<P::Scratch>,
     stop: &dyn Fn(&[f64], f64, f64, usize) -> bool,
 ) -> Result<LmOutcome, String> {
     let np = ws.np;
@@ -167,19 +225,40 @@ pub(crate) fn minimize_until(
     let mut nu = 2.0;
     let mut converged = false;
     let mut stopped = false;
-    while evals < opts.max_evals.max(1) {
+    let (marquardt, max_steps) = match opts.damping {
+        Damping::Nielsen => (false, usize::MAX),
+        Damping::Marquardt { max_steps } => (true, max_steps),
+    };
+    let (mut steps, mut rejected) = (0usize, 0usize);
+    while evals < opts.max_evals.max(1) && steps < max_steps {
         // gradient test: cos(r, J_j) = |g_j| / (|J_j| |r|)
         let rn = cost.sqrt();
-        if rn == 0.0 || (0..np).all(|j| ws.jtr[j].abs() <= opts.gtol * ws.diag[j].max(1e-300) * rn)
+        if !marquardt
+            && (rn == 0.0
+                || (0..np).all(|j| ws.jtr[j].abs() <= opts.gtol * ws.diag[j].max(1e-300) * rn))
         {
+            converged = true;
+            break;
+        }
+        if marquardt && rejected >= MARQUARDT_TRIES {
+            // no decrease at any of the dampings tried for this Jacobian
             converged = true;
             break;
         }
         ws.chol.copy_from_slice(&ws.jtj);
         for j in 0..np {
-            ws.chol[j * np + j] += lambda * ws.diag[j] * ws.diag[j];
+            ws.chol[j * np + j] += if marquardt {
+                lambda * ws.jtj[j * np + j].max(1e-12)
+            } else {
+                lambda * ws.diag[j] * ws.diag[j]
+            };
         }
         if !cholesky(&mut ws.chol, np) {
+            if marquardt {
+                lambda *= 10.0;
+                rejected += 1;
+                continue;
+            }
             lambda *= nu;
             nu *= 2.0;
             if lambda > 1e16 {
@@ -221,20 +300,34 @@ pub(crate) fn minimize_until(
                 std::mem::swap(&mut ws.jtr, &mut ws.jtr_trial);
                 let prev = cost;
                 cost = c;
+                steps += 1;
+                if stop(&ws.theta, cost, prev, evals) {
+                    stopped = true;
+                    break;
+                }
+                if marquardt {
+                    rejected = 0;
+                    lambda = (lambda * 0.3).max(1e-9);
+                    if (prev - cost) / prev.max(1e-300) <= opts.ftol {
+                        converged = true;
+                        break;
+                    }
+                    continue;
+                }
                 for j in 0..np {
                     ws.diag[j] = ws.diag[j].max(ws.jtj[j * np + j].sqrt());
                 }
                 lambda *= (1.0 - (2.0 * rho - 1.0).powi(3)).max(1.0 / 3.0);
                 lambda = lambda.max(1e-12);
                 nu = 2.0;
-                if stop(&ws.theta, cost, prev, evals) {
-                    stopped = true;
-                    break;
-                }
                 if small_f || small_step {
                     converged = true;
                     break;
                 }
+            }
+            _ if marquardt => {
+                lambda *= 10.0;
+                rejected += 1;
             }
             _ => {
                 lambda *= nu;

@@ -26,7 +26,7 @@ if command -v mosquitto >/dev/null 2>&1 || [ -x /usr/sbin/mosquitto ]; then
     echo "mosquitto: present"
 elif [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then
     export DEBIAN_FRONTEND=noninteractive
-    apt-get install -y -q mosquitto || { apt-get update -q && apt-get install -y -q mosquitto; }
+    apt-get install -y -q --no-remove mosquitto || { apt-get update -q && apt-get install -y -q --no-remove mosquitto; }
 else
     echo "mosquitto: missing and not root: the MQTT test skips (and fails under CI=true)"
 fi
@@ -39,7 +39,7 @@ elif [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then
     pkgs="chromium"
     command -v npm >/dev/null 2>&1 || pkgs="$pkgs nodejs npm"
     # shellcheck disable=SC2086
-    apt-get install -y -q $pkgs || { apt-get update -q && apt-get install -y -q $pkgs; }
+    apt-get install -y -q --no-remove $pkgs || { apt-get update -q && apt-get install -y -q --no-remove $pkgs; }
 else
     echo "chromium/node: missing and not root: the browser test skips (and fails under CI=true)"
 fi

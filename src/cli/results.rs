@@ -2,7 +2,7 @@
 //! `sweep`, `demo`): options from the arguments, the analysis, its JSON and its Bode plot.
 
 use super::{CliError, ModelArgs};
-use crate::analysis::{analyze, to_json, Analysis, AnalysisOptions};
+use crate::analysis::{analyze, to_json, Analysis, AnalysisError, AnalysisOptions};
 use crate::identify::fit::{FitBudget, FitOptions};
 use crate::plot::BodePlot;
 use crate::recording::{read_recording, write_bytes_atomic, Recording};
@@ -53,8 +53,13 @@ pub(crate) fn run_analysis(rec: &Recording, opts: &AnalysisOptions) -> Result<An
     let mut opts = opts.clone();
     opts.fit.budget = opts.fit.budget.restarted();
     let budget = opts.fit.budget.clone();
-    super::fit_progress::with_progress(&budget, "flexid identify", || analyze(rec, &opts))
-        .map_err(|e| CliError::failed(e.to_string()))
+    super::fit_progress::with_progress(&budget, "flexid identify", || analyze(rec, &opts)).map_err(
+        |e| match e {
+            // the command line's own wording: which flag was out of range
+            AnalysisError::Masses { .. } => CliError::failed(format!("--masses: {e}")),
+            e => CliError::failed(e.to_string()),
+        },
+    )
 }
 
 pub(crate) fn bode_plot<'a>(a: &'a Analysis, title: &str) -> BodePlot<'a> {

@@ -50,7 +50,7 @@ impl CanopenBackend {
     ) -> Result<SweepHandle, BackendError>
     where
         B: CanBus + 'static,
-        F: FnOnce(&BusConfig) -> Result<B, String> + Send + 'static,
+        F: FnOnce(&BusConfig) -> Result<B, BusOpenError> + Send + 'static,
     {
         let bus = self
             .buses
@@ -71,7 +71,7 @@ impl CanopenBackend {
                 "flexid daemon: axis {} (node {} on bus {})",
                 job.axis.name, job.axis.node, bus.name
             );
-            let r = open(&bus).and_then(|b| {
+            let r = open(&bus).map_err(|e| e.to_string()).and_then(|b| {
                 let cfg = MasterConfig {
                     node: job.axis.node,
                     cycle_period: job.plan.period(),
@@ -102,16 +102,29 @@ impl AxisBackend for CanopenBackend {
         match self.buses.get(&axis.bus).map(|b| b.kind) {
             Some(BusKind::Socketcan) => self.start_on(axis, plan, |bus: &BusConfig| {
                 let iface = bus.interface.clone().unwrap_or_default();
-                flexid_can::SocketCanBus::open(&iface)
-                    .map_err(|e| format!("bus {} ({iface}): {e}", bus.name))
+                flexid_can::SocketCanBus::open(&iface).map_err(|source| BusOpenError {
+                    bus: format!("{} ({iface})", bus.name),
+                    source,
+                })
             }),
             _ => self.start_on(axis, plan, open_udp),
         }
     }
 }
 
+/// A configured bus that could not be opened.
+#[derive(Debug, thiserror::Error)]
+#[error("bus {bus}: {source}")]
+pub struct BusOpenError {
+    /// The bus's name in the configuration (and its interface, for SocketCAN).
+    pub bus: String,
+    /// What the bus driver said.
+    #[source]
+    pub source: flexid_can::BusError,
+}
+
 /// Opens a `kind = "udp"` bus of the configuration.
-pub fn open_udp(bus: &BusConfig) -> Result<UdpMulticastBus, String> {
+pub fn open_udp(bus: &BusConfig) -> Result<UdpMulticastBus, BusOpenError> {
     let mut cfg = UdpConfig::default();
     if let Some(g) = bus.group {
         cfg.group = g;
@@ -119,5 +132,8 @@ pub fn open_udp(bus: &BusConfig) -> Result<UdpMulticastBus, String> {
     if let Some(p) = bus.port {
         cfg.port = p;
     }
-    UdpMulticastBus::open(cfg).map_err(|e| format!("bus {}: {e}", bus.name))
+    UdpMulticastBus::open(cfg).map_err(|source| BusOpenError {
+        bus: bus.name.clone(),
+        source,
+    })
 }

@@ -47,7 +47,7 @@ impl StopReason {
                 velocity_rad_s,
                 limit_rad_s,
             } => format!(
-                "speed limit: |velocity| {:.3} rad/s above --max-speed-rad-s {limit_rad_s}",
+                "speed limit: |velocity| {:.3} rad/s above the limit {limit_rad_s} rad/s",
                 velocity_rad_s.abs()
             ),
             StopReason::BusError(e) => format!("bus error: {e}"),

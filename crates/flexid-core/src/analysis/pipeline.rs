@@ -22,7 +22,7 @@ pub enum AnalysisError {
     TooShort { samples: usize, needed: usize },
     #[error("no frequency line with a usable estimate is left in the band")]
     NoLines,
-    #[error("--masses {masses} is out of range: a chain has 1 to {max} bodies here")]
+    #[error("{masses} bodies asked for: a chain has 1 to {max} bodies here")]
     Masses { masses: usize, max: usize },
     #[error("FRF estimation: {0}")]
     Frf(#[from] FrfError),

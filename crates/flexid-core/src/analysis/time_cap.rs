@@ -36,7 +36,7 @@ impl TimeCap {
     pub fn message(&self) -> Option<String> {
         self.capped.then(|| {
             format!(
-                "TIME CAP: identification stopped after {:.1} s (--max-seconds {}): {} starts and {} model orders not tried; the model is the best found so far",
+                "TIME CAP: identification stopped after {:.1} s (time budget {} s): {} starts and {} model orders not tried; the model is the best found so far",
                 self.elapsed_s, self.max_seconds, self.starts_skipped, self.orders_skipped
             )
         })

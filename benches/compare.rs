@@ -1,5 +1,5 @@
 //! The comparison benchmark, Rust side (`scripts/bench.sh` runs it, then
-//! `benches/compare.py` on the same files; see the README's "Benchmark" section).
+//! `benches/compare.py` on the same files; see docs/benchmarks.md).
 //!
 //! It simulates the embedded 3-mass SCARA axis (exact ZOH, 1 % velocity noise, 20-bit
 //! encoder), writes the data sets to `--out DIR` as raw little-endian `f64` files with a

@@ -1,5 +1,5 @@
 //! Wake-up lateness of the flexid cycle thread against a bare `clock_nanosleep` loop
-//! (`scripts/bench.sh` runs it; see the README's "Benchmark" section).
+//! (`scripts/bench.sh` runs it; see docs/benchmarks.md).
 //!
 //! At 1, 2 and 4 kHz, in the same process, interleaved in chunks so both share the
 //! machine's noise:

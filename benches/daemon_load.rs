@@ -1,4 +1,4 @@
-//! The daemon under load (`scripts/bench.sh` runs it; see the README's "Daemon load"): the
+//! The daemon under load (`scripts/bench.sh` runs it; see docs/benchmarks.md, "Daemon load"): the
 //! real `flexid daemon` (CANopen backend, `clock = "monotonic"`) with one and then two axes
 //! sweeping on real `flexid-vdrive`s (`--clock realtime`, each on its own UDP bus), against
 //! the same daemon idle in the same run, at 1, 2 and 4 kHz.

@@ -15,6 +15,7 @@ import json
 import os
 import platform
 import sys
+import subprocess
 import time
 from pathlib import Path
 
@@ -33,6 +34,44 @@ TOL_RES_REL = 1e-7  # fit residual vector, max |diff| / RMS
 def load(d, name, rows=None):
     v = np.fromfile(d / name, dtype="<f8")
     return v if rows is None else v.reshape(rows, -1)
+
+
+class RustSide:
+    """The Rust side as a process answering one timed run per request (compare.rs
+    --serve): started here, so that the two sides alternate run by run."""
+
+    def __init__(self, exe, data, quick):
+        cmd = [exe, "--out", str(data), "--serve"] + (["--quick"] if quick else [])
+        self.p = subprocess.Popen(cmd, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+        line = self.p.stdout.readline().strip()
+        if line != "ready":
+            raise RuntimeError(f"the Rust side did not start: {line!r}")
+
+    def run(self, what):
+        self.p.stdin.write(what + "\n")
+        self.p.stdin.flush()
+        return float(self.p.stdout.readline())
+
+    def close(self):
+        try:
+            self.p.stdin.write("quit\n")
+            self.p.stdin.close()
+        except OSError:
+            pass
+        self.p.wait()
+
+
+def interleaved(rounds, rust, what, f):
+    """`rounds` rounds of one Rust run and one Python run each (after one warm-up of the
+    Python side); the times of both sides, per round, and the last Python result."""
+    out = f()  # warm-up (the Rust side warmed up while generating the data)
+    tr, tp = [], []
+    for _ in range(rounds):
+        tr.append(rust.run(what))
+        t0 = time.perf_counter()
+        out = f()
+        tp.append(time.perf_counter() - t0)
+    return tr, tp, out
 
 
 def timed(reps, f):
@@ -218,6 +257,9 @@ def main():
     args = sys.argv[1:]
     d = Path(args[0])
     report = Path(args[args.index("--report") + 1]) if "--report" in args else None
+    rust = None
+    if "--rust" in args:
+        rust = RustSide(args[args.index("--rust") + 1], d, "--quick" in args)
     meta = json.loads((d / "meta.json").read_text())
     quick = meta["quick"]
     fs = meta["sample_rate_hz"]
@@ -237,21 +279,26 @@ def main():
     # H1
     m = meta["h1"]
     u, y = load(d, "h1_u.f64"), load(d, "h1_y.f64")
-    t_py, (h, coh) = timed(reps_fast, lambda: h1_scipy(u, y, fs, m["nperseg"], m["overlap"]))
+    f = lambda: h1_scipy(u, y, fs, m["nperseg"], m["overlap"])
+    if rust:
+        t_rs, t_py, (h, coh) = interleaved(reps_fast, rust, "h1", f)
+    else:
+        t_rs = m["rust_times_s"]
+        t_py, (h, coh) = timed(reps_fast, f)
     rust = load(d, "h1_rust.f64", 3)
     hr, cr = rust[0] + 1j * rust[1], rust[2]
     h, coh = h[1:], coh[1:]  # flexid reports lines 1..nperseg/2
     print(f"H1 with coherence: {m['samples']} samples, nperseg {m['nperseg']}, overlap {m['overlap']}")
     e_h1 = check("H1 (max rel)", np.max(np.abs(hr - h) / np.abs(h)), TOL_H_REL)
     e_c1 = check("coherence (max abs)", np.max(np.abs(cr - coh)), TOL_COH_ABS)
-    tr, tp = med(m["rust_times_s"]), med(t_py)
+    tr, tp = med(t_rs), med(t_py)
     rows.append(
         dict(
             what=f"Welch H1 + coherence ({m['samples']} samples, {m['nperseg']}-sample Hann, 50 %)",
             peer="scipy.signal welch x2 + csd",
             tr=tr, tp=tp, unit="Msamples/s", thr=m["samples"] / tr / 1e6,
             thp=m["samples"] / tp / 1e6, target=10.0,
-            agree=f"H {e_h1:.1e} rel, coherence {e_c1:.1e}",
+            agree=f"H {e_h1:.1e} rel, coherence {e_c1:.1e}", ratios=ratios(t_rs, t_py, rust),
         )
     )
 
@@ -260,7 +307,12 @@ def main():
     u, y = load(d, "ms_u.f64"), load(d, "ms_y.f64")
     lines = np.array(m["excited_lines"])
     args_p = (u, y, m["period_samples"], m["periods"], m["transient_periods"], lines)
-    t_py, (h, var, coh) = timed(reps_fast, lambda: periodic_numpy(*args_p))
+    f = lambda: periodic_numpy(*args_p)
+    if rust:
+        t_rs, t_py, (h, var, coh) = interleaved(reps_fast, rust, "periodic", f)
+    else:
+        t_rs = m["rust_times_s"]
+        t_py, (h, var, coh) = timed(reps_fast, f)
     rust = load(d, "per_rust.f64", 4)
     hr, vr, cr = rust[0] + 1j * rust[1], rust[2], rust[3]
     print(
@@ -271,13 +323,14 @@ def main():
     e_vp = check("periodic var (max rel)", np.max(np.abs(vr - var) / var), TOL_VAR_REL)
     e_cp = check("periodic coherence (max abs)", np.max(np.abs(cr - coh)), TOL_COH_ABS)
     samples = (m["periods"] + m["transient_periods"]) * m["period_samples"]
-    tr, tp = med(m["rust_times_s"]), med(t_py)
+    tr, tp = med(t_rs), med(t_py)
     rows.append(
         dict(
             what=f"periodic FRF ({m['periods']} periods of {m['period_samples']}, {len(lines)} lines, with variance and coherence)",
             peer="numpy reshape + rfft + mean/var (+ ramp of the period means)",
             tr=tr, tp=tp, unit="Msamples/s", thr=samples / tr / 1e6, thp=samples / tp / 1e6,
             target=2.0, agree=f"H {e_hp:.1e} rel, var {e_vp:.1e} rel, coherence {e_cp:.1e}",
+            ratios=ratios(t_rs, t_py, rust),
         )
     )
 
@@ -296,12 +349,16 @@ def main():
         rp = prob.residuals(th)
         rms = np.sqrt(np.mean(rr**2))
         res_err = max(res_err, check(f"fit residual at {name} (max abs / RMS {rms:.3g})", np.max(np.abs(rr - rp)) / rms, TOL_RES_REL))
-    t_py = []
+    t_py, t_rs = [], []
     for _ in range(reps_fit):
+        if rust:
+            t_rs.append(rust.run("fit"))
         t0 = time.perf_counter()
         prob = ChainProblem(frf[0], frf[1] + 1j * frf[2], frf[3], fs, m["masses"])
         best = fit_scipy(prob, starts, m)
         t_py.append(time.perf_counter() - t0)
+    if not rust:
+        t_rs = m["rust_times_s"]
     cost_py, x_py = best
     err_py = param_error(x_py, truth, m["masses"])
     err_r = m["rust_param_error"]
@@ -311,7 +368,7 @@ def main():
         f"  cost: flexid {m['rust_cost']:.8e}, scipy {cost_py:.8e}; optima differ by {rel_opt:.2e} (max rel); "
         f"max param error flexid {err_r:.3e}, scipy {err_py:.3e}"
     )
-    tr, tp = med(m["rust_times_s"]), med(t_py)
+    tr, tp = med(t_rs), med(t_py)
     rows.append(
         dict(
             what=f"{m['masses']}-mass fit, {m['starts']} starts, {prob.lines} lines",
@@ -320,8 +377,11 @@ def main():
             target=50.0,
             agree=f"residual {res_err:.1e}; max param error flexid {100 * err_r:.3f} %, scipy {100 * err_py:.3f} %",
             extra_ok=err_r <= err_py + 1e-4,
+            ratios=ratios(t_rs, t_py, rust),
         )
     )
+    if rust:
+        rust.close()
 
     # table
     cpu = "unknown CPU"
@@ -334,16 +394,21 @@ def main():
         pass
     head = (
         f"flexid vs scipy {scipy.__version__} / numpy {np.__version__} (Python {platform.python_version()}), "
-        f"one core of {os.cpu_count()} ({cpu}); median of {reps_fast} runs "
-        f"(fit: Rust {len(meta['fit']['rust_times_s'])}, scipy {reps_fit}){' [quick]' if quick else ''}"
+        f"one core of {os.cpu_count()} ({cpu}); "
+        + (
+            f"the two sides interleaved run by run, {reps_fast} rounds (fit: {reps_fit}); ratio = peer / flexid per round, median [min, max]"
+            if rust
+            else f"median of {reps_fast} runs (fit: Rust {len(meta['fit']['rust_times_s'])}, scipy {reps_fit}), one side after the other"
+        )
+        + (" [quick]" if quick else "")
     )
-    out = [head, "", "| computation | peer | flexid | peer | throughput flexid / peer | ratio | target | met | agreement |", "|---|---|---|---|---|---|---|---|---|"]
+    out = [head, "", "| computation | peer | flexid (median) | peer (median) | throughput flexid / peer | ratio median [min, max] | target | met | agreement |", "|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
-        ratio = r["tp"] / r["tr"]
-        met = ratio >= r["target"] and r.get("extra_ok", True)
+        rm, rlo, rhi = r["ratios"]
+        met = rm >= r["target"] and r.get("extra_ok", True)
         out.append(
             f"| {r['what']} | {r['peer']} | {fmt_t(r['tr'])} | {fmt_t(r['tp'])} | "
-            f"{r['thr']:.3g} / {r['thp']:.3g} {r['unit']} | **{ratio:.1f}x** | {r['target']:g}x | "
+            f"{r['thr']:.3g} / {r['thp']:.3g} {r['unit']} | **{rm:.1f}x** [{rlo:.1f}, {rhi:.1f}] | {r['target']:g}x | "
             f"{'yes' if met else 'no'} | {r['agree']} |"
         )
     text = "\n".join(out) + "\n"
@@ -357,6 +422,16 @@ def main():
         print(f"bench: the two sides DISAGREE: {', '.join(failures)}", file=sys.stderr)
         return 1
     return 0
+
+
+def ratios(t_rust, t_peer, interleaved_run):
+    """Median, min and max of peer/flexid: per round when the sides were interleaved,
+    else of the medians (one value)."""
+    if interleaved_run:
+        r = [p / q for p, q in zip(t_peer, t_rust)]
+    else:
+        r = [float(np.median(t_peer)) / float(np.median(t_rust))]
+    return float(np.median(r)), float(min(r)), float(max(r))
 
 
 def fmt_t(s):

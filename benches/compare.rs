@@ -13,8 +13,10 @@
 //! fit's weighted residual vector at reference points) are written next to the data so
 //! that the Python side can check that it computes the same numbers.
 //!
-//! Arguments: `[--quick] [--out DIR]` (other arguments, e.g. cargo's `--bench`, are
-//! ignored).
+//! Arguments: `[--quick] [--out DIR] [--serve]` (other arguments, e.g. cargo's `--bench`,
+//! are ignored). With `--serve` it then answers timing requests on stdin (one run of `h1`,
+//! `periodic` or `fit` per line), so that `benches/compare.py --rust EXE` can alternate
+//! the two sides run by run.
 
 use flexid::excitation::{AmplitudeShape, MultisineDesign};
 use flexid::frf::{differenced_velocity, estimate_periodic, welch_h1, Frf, FrfKind};
@@ -258,4 +260,50 @@ fn main() {
     )
     .expect("write meta.json");
     log(format!("data and results in {}", out.display()));
+
+    if args.iter().any(|a| a == "--serve") {
+        // Interleaved timing (benches/compare.py --rust): one timed run per request, so
+        // that the two sides alternate within one process lifetime each.
+        serve(|what| match what {
+            "h1" => seconds(|| welch_h1(&u_h1, &y_h1, FS, H1_NPERSEG, H1_OVERLAP).expect("welch")),
+            "periodic" => seconds(|| {
+                estimate_periodic(&u_ms, &y_ms, &info, FS, FrfKind::DifferencedVelocity)
+                    .expect("periodic")
+            }),
+            "fit" => seconds(|| fit_chain(&frf, &init, &opts).expect("fit")),
+            _ => None,
+        });
+    }
+}
+
+/// Seconds of one call of `f`.
+fn seconds<T>(f: impl FnOnce() -> T) -> Option<f64> {
+    let t0 = Instant::now();
+    black_box(f());
+    Some(t0.elapsed().as_secs_f64())
+}
+
+/// Answers timing requests on stdin, one a line (`h1`, `periodic`, `fit`; `quit` or end
+/// of input ends): prints `ready`, then one line per request with the seconds of one run
+/// (`error` for an unknown request).
+fn serve(mut run: impl FnMut(&str) -> Option<f64>) {
+    use std::io::BufRead;
+    let stdout = std::io::stdout();
+    let say = |s: String| {
+        let mut o = stdout.lock();
+        let _ = writeln!(o, "{s}");
+        let _ = o.flush();
+    };
+    say("ready".into());
+    for line in std::io::stdin().lock().lines() {
+        let Ok(line) = line else { break };
+        let what = line.trim();
+        if what == "quit" {
+            break;
+        }
+        match run(what) {
+            Some(t) => say(format!("{t:e}")),
+            None => say("error".into()),
+        }
+    }
 }

@@ -5,11 +5,12 @@
 #   scripts/bench.sh --quick   short run (CI, after the tests)
 #
 # 1. creates/reuses .venv (gitignored) with pinned numpy and scipy (idempotent);
-# 2. builds and runs the Rust side (benches/compare.rs): simulates the data, writes it to
-#    target/bench/data, times flexid on it and writes its results there;
-# 3. runs the Python side (benches/compare.py) on the same files: times scipy/numpy, checks
-#    that both sides computed the same numbers, prints the table and writes
-#    target/bench/compare.md.
+# 2. builds the Rust side (benches/compare.rs) and runs the Python side
+#    (benches/compare.py), which starts it: Rust simulates the data, writes it to
+#    target/bench/data with its results; Python reads the same files, checks that both
+#    sides computed the same numbers, then times the two sides interleaved (Rust, Python,
+#    Rust, Python, ...), prints the median [min, max] ratio per computation and writes
+#    target/bench/compare.md. FLEXID_BENCH_ONLY=compare stops after this stage.
 # Both processes are pinned to the same core, BLAS/OpenMP to one thread. Ratios are
 # reported, not asserted; the script fails when the two sides' numbers disagree.
 # 4. runs the cycle-timing benchmark (benches/cycle_timing.rs): wake-up lateness of the
@@ -77,8 +78,14 @@ export OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 MKL_NUM_THREADS=1 \
 
 data="$root/target/bench/data"
 rm -rf "$data"
-"${pin[@]}" "$exe" "${mode[@]}" --out "$data"
-"${pin[@]}" "$venv/bin/python" benches/compare.py "$data" --report "$root/target/bench/compare.md"
+# The Python side starts the Rust side (--serve, on the same pinned core) and alternates
+# them run by run: a timing of each side per round, the ratio per round, its median, min
+# and max (a shared machine's load then hits both sides alike).
+"${pin[@]}" "$venv/bin/python" benches/compare.py "$data" --rust "$exe" "${mode[@]}" \
+    --report "$root/target/bench/compare.md"
+if [ "${FLEXID_BENCH_ONLY:-}" = compare ]; then
+    exit 0
+fi
 
 # The cycle-timing benchmark (not pinned by taskset: it pins its cycle threads itself).
 cexe=$(cargo build --release --bench cycle_timing --message-format=json 2>/dev/null |

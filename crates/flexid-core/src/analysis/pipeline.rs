@@ -148,23 +148,19 @@ fn analyze_uncapped(rec: &Recording, opts: &AnalysisOptions) -> Result<Analysis,
     if !fittable {
         return Ok(analysis);
     }
-    let by_prominence = by_prominence(&analysis.detection.pairs);
+    let pairs = Pairs {
+        j,
+        by_prominence: by_prominence(&analysis.detection.pairs),
+        spectra,
+    };
     let fit_opts = FitOptions {
         delay_samples: delay,
         band_hz: opts.band_hz,
         ..opts.fit.clone()
     };
     let fit = match opts.masses {
-        Some(m) => fit_given_order(
-            &mut analysis,
-            m,
-            j,
-            &spectra,
-            &by_prominence,
-            &fit_opts,
-            opts,
-        )?,
-        None => fit_chosen_order(&mut analysis, j, &spectra, &by_prominence, &fit_opts, opts)?,
+        Some(m) => fit_given_order(&mut analysis, m, &pairs, &fit_opts, opts)?,
+        None => fit_chosen_order(&mut analysis, &pairs, &fit_opts, opts)?,
     };
     finish(analysis, fit, fs, delay)
 }
@@ -290,12 +286,24 @@ fn by_prominence(pairs: &[ArRPair]) -> Vec<usize> {
     order
 }
 
-/// The initial chain with the `k` most prominent pairs.
-fn chain_with(j: f64, spectra: &[(f64, f64)], by_prominence: &[usize], k: usize) -> Option<Chain> {
-    let mut keep: Vec<usize> = by_prominence[..k].to_vec();
-    keep.sort_unstable();
-    let sel: Vec<(f64, f64)> = keep.iter().map(|&i| spectra[i]).collect();
-    exact_chain(j, &sel)
+/// The detected pairs as the fit's initial chains are made from them.
+struct Pairs {
+    /// Total inertia [kg m^2].
+    j: f64,
+    /// (anti-resonance, resonance) per pair [Hz], in frequency order.
+    spectra: Vec<(f64, f64)>,
+    /// Pair indices, most prominent first.
+    by_prominence: Vec<usize>,
+}
+
+impl Pairs {
+    /// The initial chain with the `k` most prominent pairs.
+    fn chain_with(&self, k: usize) -> Option<Chain> {
+        let mut keep: Vec<usize> = self.by_prominence[..k].to_vec();
+        keep.sort_unstable();
+        let sel: Vec<(f64, f64)> = keep.iter().map(|&i| self.spectra[i]).collect();
+        exact_chain(self.j, &sel)
+    }
 }
 
 /// `--masses m`: the chain of `m` bodies. With fewer bodies than detected pairs, which
@@ -306,12 +314,11 @@ fn chain_with(j: f64, spectra: &[(f64, f64)], by_prominence: &[usize], k: usize)
 fn fit_given_order(
     analysis: &mut Analysis,
     m: usize,
-    j: f64,
-    spectra: &[(f64, f64)],
-    by_prominence: &[usize],
+    pairs: &Pairs,
     fit_opts: &FitOptions,
     opts: &AnalysisOptions,
 ) -> Result<ChainFit, AnalysisError> {
+    let (j, spectra) = (pairs.j, &pairs.spectra[..]);
     let k = m - 1;
     let init = if k < spectra.len() {
         let choices = combinations(spectra.len(), k, 32);
@@ -346,7 +353,7 @@ fn fit_given_order(
             (None, None) => None,
         }
     } else if k == spectra.len() {
-        chain_with(j, spectra, by_prominence, k)
+        pairs.chain_with(k)
     } else {
         analysis.notes.push(format!(
             "{m} bodies asked for but only {} anti-resonance/resonance pairs were detected: the missing pairs start near the top of the band",
@@ -380,17 +387,14 @@ fn fit_given_order(
 /// says why.
 fn fit_chosen_order(
     analysis: &mut Analysis,
-    j: f64,
-    spectra: &[(f64, f64)],
-    by_prominence: &[usize],
+    pairs: &Pairs,
     fit_opts: &FitOptions,
     opts: &AnalysisOptions,
 ) -> Result<ChainFit, AnalysisError> {
+    let (j, spectra) = (pairs.j, &pairs.spectra);
     let hi = spectra.len().min(opts.max_masses.saturating_sub(1));
     let lo = hi.saturating_sub(2);
-    let mut candidates: Vec<Chain> = (lo..=hi)
-        .filter_map(|k| chain_with(j, spectra, by_prominence, k))
-        .collect();
+    let mut candidates: Vec<Chain> = (lo..=hi).filter_map(|k| pairs.chain_with(k)).collect();
     if candidates.is_empty() {
         analysis.notes.push(format!(
             "the {} detected pairs do not form a spring-mass chain (anti-resonances and resonances must interlace): only the rigid body is fitted",

@@ -257,9 +257,9 @@ def main():
     args = sys.argv[1:]
     d = Path(args[0])
     report = Path(args[args.index("--report") + 1]) if "--report" in args else None
-    rust = None
+    side = None
     if "--rust" in args:
-        rust = RustSide(args[args.index("--rust") + 1], d, "--quick" in args)
+        side = RustSide(args[args.index("--rust") + 1], d, "--quick" in args)
     meta = json.loads((d / "meta.json").read_text())
     quick = meta["quick"]
     fs = meta["sample_rate_hz"]
@@ -280,8 +280,8 @@ def main():
     m = meta["h1"]
     u, y = load(d, "h1_u.f64"), load(d, "h1_y.f64")
     f = lambda: h1_scipy(u, y, fs, m["nperseg"], m["overlap"])
-    if rust:
-        t_rs, t_py, (h, coh) = interleaved(reps_fast, rust, "h1", f)
+    if side:
+        t_rs, t_py, (h, coh) = interleaved(reps_fast, side, "h1", f)
     else:
         t_rs = m["rust_times_s"]
         t_py, (h, coh) = timed(reps_fast, f)
@@ -298,7 +298,7 @@ def main():
             peer="scipy.signal welch x2 + csd",
             tr=tr, tp=tp, unit="Msamples/s", thr=m["samples"] / tr / 1e6,
             thp=m["samples"] / tp / 1e6, target=10.0,
-            agree=f"H {e_h1:.1e} rel, coherence {e_c1:.1e}", ratios=ratios(t_rs, t_py, rust),
+            agree=f"H {e_h1:.1e} rel, coherence {e_c1:.1e}", ratios=ratios(t_rs, t_py, side),
         )
     )
 
@@ -308,8 +308,8 @@ def main():
     lines = np.array(m["excited_lines"])
     args_p = (u, y, m["period_samples"], m["periods"], m["transient_periods"], lines)
     f = lambda: periodic_numpy(*args_p)
-    if rust:
-        t_rs, t_py, (h, var, coh) = interleaved(reps_fast, rust, "periodic", f)
+    if side:
+        t_rs, t_py, (h, var, coh) = interleaved(reps_fast, side, "periodic", f)
     else:
         t_rs = m["rust_times_s"]
         t_py, (h, var, coh) = timed(reps_fast, f)
@@ -330,7 +330,7 @@ def main():
             peer="numpy reshape + rfft + mean/var (+ ramp of the period means)",
             tr=tr, tp=tp, unit="Msamples/s", thr=samples / tr / 1e6, thp=samples / tp / 1e6,
             target=2.0, agree=f"H {e_hp:.1e} rel, var {e_vp:.1e} rel, coherence {e_cp:.1e}",
-            ratios=ratios(t_rs, t_py, rust),
+            ratios=ratios(t_rs, t_py, side),
         )
     )
 
@@ -351,13 +351,13 @@ def main():
         res_err = max(res_err, check(f"fit residual at {name} (max abs / RMS {rms:.3g})", np.max(np.abs(rr - rp)) / rms, TOL_RES_REL))
     t_py, t_rs = [], []
     for _ in range(reps_fit):
-        if rust:
-            t_rs.append(rust.run("fit"))
+        if side:
+            t_rs.append(side.run("fit"))
         t0 = time.perf_counter()
         prob = ChainProblem(frf[0], frf[1] + 1j * frf[2], frf[3], fs, m["masses"])
         best = fit_scipy(prob, starts, m)
         t_py.append(time.perf_counter() - t0)
-    if not rust:
+    if not side:
         t_rs = m["rust_times_s"]
     cost_py, x_py = best
     err_py = param_error(x_py, truth, m["masses"])
@@ -377,11 +377,11 @@ def main():
             target=50.0,
             agree=f"residual {res_err:.1e}; max param error flexid {100 * err_r:.3f} %, scipy {100 * err_py:.3f} %",
             extra_ok=err_r <= err_py + 1e-4,
-            ratios=ratios(t_rs, t_py, rust),
+            ratios=ratios(t_rs, t_py, side),
         )
     )
-    if rust:
-        rust.close()
+    if side:
+        side.close()
 
     # table
     cpu = "unknown CPU"
@@ -397,7 +397,7 @@ def main():
         f"one core of {os.cpu_count()} ({cpu}); "
         + (
             f"the two sides interleaved run by run, {reps_fast} rounds (fit: {reps_fit}); ratio = peer / flexid per round, median [min, max]"
-            if rust
+            if side
             else f"median of {reps_fast} runs (fit: Rust {len(meta['fit']['rust_times_s'])}, scipy {reps_fit}), one side after the other"
         )
         + (" [quick]" if quick else "")

@@ -1,8 +1,6 @@
 //! [`Tap`]: a [`CyclicDrive`] around the enabled drive that the CANopen backend hands to
 //! [`flexid_sweep::run_sweep`]. Every cycle it
 //!
-//! * stores the row (set-point sent, position) into the sweep's [`PeriodRows`] so each
-//!   finished period can be streamed while the sweep runs;
 //! * measures the wake-up lateness after the previous cycle's deadline (real-time pacing)
 //!   into a [`TimingStats`] allocated before the sweep;
 //! * enforces the axis's position window (relative to the position at the first cycle):
@@ -11,7 +9,6 @@
 //!
 //! Nothing here allocates per cycle.
 
-use super::period_relay::PeriodRows;
 use flexid_canopen::{Counters, CyclicDrive, Feedback};
 use flexid_rt::TimingStats;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -20,11 +17,9 @@ use std::time::{Duration, Instant};
 /// The drive seen by the sweep loop.
 pub struct Tap<'a, D> {
     inner: &'a mut D,
-    rows: &'a PeriodRows,
     stop: &'a AtomicBool,
     window_rad: f64,
     realtime: bool,
-    k: usize,
     origin_rad: Option<f64>,
     prev_deadline: Option<Instant>,
     /// Wake-up lateness (real-time pacing only).
@@ -35,21 +30,13 @@ pub struct Tap<'a, D> {
 
 impl<'a, D: CyclicDrive> Tap<'a, D> {
     /// Wraps `inner`; `stop` is the flag the sweep loop polls.
-    pub fn new(
-        inner: &'a mut D,
-        rows: &'a PeriodRows,
-        stop: &'a AtomicBool,
-        window_rad: f64,
-        realtime: bool,
-    ) -> Self {
+    pub fn new(inner: &'a mut D, stop: &'a AtomicBool, window_rad: f64, realtime: bool) -> Self {
         let period_ns = inner.cycle_period().as_nanos().max(1) as u64;
         Tap {
             inner,
-            rows,
             stop,
             window_rad,
             realtime,
-            k: 0,
             origin_rad: None,
             prev_deadline: None,
             stats: TimingStats::new(period_ns),
@@ -71,9 +58,6 @@ impl<D: CyclicDrive> CyclicDrive for Tap<'_, D> {
             self.prev_deadline = Some(deadline);
         }
         let fb = self.inner.cycle(torque_nm, deadline)?;
-        self.rows
-            .write(self.k, fb.torque_setpoint_nm, fb.position_rad);
-        self.k += 1;
         let origin = *self.origin_rad.get_or_insert(fb.position_rad);
         let moved = fb.position_rad - origin;
         if self.window_trip_rad.is_none() && !(moved.abs() <= self.window_rad) {

@@ -1,20 +1,21 @@
 //! One sweep on an enabled drive, the same for every backend: the sweep library's loop
-//! ([`flexid_sweep::run_sweep`]) over any [`CyclicDrive`] (a CiA 402 drive on a bus, or
-//! the CAN-free simulated drive), wrapped in a [`Tap`] that stores every row into a
-//! pre-allocated [`PeriodRows`] and enforces the position window; after every period the
-//! sweep's progress hook publishes the rows and a relay thread ([`spawn_relay`]) sends
-//! them with the FRF estimate so far. The final recording's sidecar carries the cycle
-//! timing beside the exchange counters.
+//! ([`flexid_sweep::run_sweep_into`]) over any [`CyclicDrive`] (a CiA 402 drive on a bus,
+//! or the CAN-free simulated drive), wrapped in a [`Tap`] that times the wake-ups and
+//! enforces the position window. The rows go once into one sink, the pre-allocated
+//! [`PeriodRows`]: after every period the sweep's progress hook publishes them and a relay
+//! thread ([`spawn_relay`]) sends them with the FRF estimate so far (to the files and the
+//! live Bode); the final recording is read back from the same rows. Its sidecar carries
+//! the cycle timing beside the exchange counters.
 
 use super::backend::{AbortSignal, BackendError, Outcome, SweepEvent, SweepHandle, SweepPlan};
 use super::canopen_tap::Tap;
 use super::config::{AxisConfig, ClockKind};
-use super::period_relay::{spawn_relay, PeriodRows, RelayPlan};
+use super::period_relay::{spawn_relay, PeriodRows, RelayPlan, RowsSink};
 use flexid_canopen::CyclicDrive;
 use flexid_core::frf::{FrfKind, PeriodicEstimator};
-use flexid_files::recording::CycleTiming;
+use flexid_files::recording::{CycleTiming, Recording};
 use flexid_rt::{clock, RtGranted, RtSetup};
-use flexid_sweep::{run_sweep, Pacing, StopReason};
+use flexid_sweep::{run_sweep_into, Pacing, StopReason};
 use std::sync::Arc;
 use std::time::Duration;
 use tokio::sync::mpsc;
@@ -166,12 +167,18 @@ impl DriveJob {
         };
         let mut tap = Tap::new(
             &mut drive,
-            &self.rows,
             self.abort.flag(),
             self.axis.limits.position_window_rad,
             realtime,
         );
-        let outcome = run_sweep(&mut tap, &self.plan, self.abort.flag(), &mut progress);
+        let mut sink = RowsSink(&self.rows);
+        let outcome = run_sweep_into(
+            &mut tap,
+            &self.plan,
+            self.abort.flag(),
+            &mut progress,
+            &mut sink,
+        );
         let window_trip = tap.window_trip_rad;
         let stats = std::mem::replace(&mut tap.stats, flexid_rt::TimingStats::new(1));
         drop(tap);
@@ -196,7 +203,19 @@ impl DriveJob {
             ),
             (other, _) => (Outcome::Failed, other.text()),
         };
-        let mut recording = outcome.recording;
+        // the recording is the rows of the one sink (what the relay streamed to disk)
+        let (torque, position) = self.rows.columns(outcome.rows);
+        let fs = self.plan.cycle_hz;
+        let mut recording = Recording {
+            time_s: (0..torque.len()).map(|k| k as f64 / fs).collect(),
+            torque_cmd_nm: torque,
+            position_rad: Some(position),
+            velocity_rad_s: None,
+            acceleration_rad_s2: None,
+            torque_actual_nm: None,
+            sample_rate_hz: fs,
+            sidecar: outcome.sidecar,
+        };
         let sc = &mut recording.sidecar;
         if let Some(end) = sc.end.as_mut() {
             end.reason = reason.clone();

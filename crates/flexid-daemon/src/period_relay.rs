@@ -286,3 +286,20 @@ mod tests {
         assert_eq!(periods.len(), 6 * step / period);
     }
 }
+
+/// The sweep loop's one sink in the daemon: every row goes into [`PeriodRows`] (read by
+/// the relay for the live estimate and the files) and nowhere else.
+pub struct RowsSink<'a>(pub &'a PeriodRows);
+
+impl flexid_sweep::RowSink for RowsSink<'_> {
+    fn push(&mut self, k: usize, row: &flexid_sweep::Row) {
+        self.0.write(k, row.torque_setpoint_nm, row.position_rad);
+    }
+}
+
+impl PeriodRows {
+    /// Rows `..n` as (torque set-point, position) columns, once the sweep has ended.
+    pub fn columns(&self, n: usize) -> (Vec<f64>, Vec<f64>) {
+        self.read(0, n.min(self.torque_nm.len()))
+    }
+}

@@ -20,7 +20,8 @@ mod simulated;
 
 pub use plan::{admission_check, default_heartbeats, Pacing, SweepPlan};
 pub use run::{
-    realtime_setup, run_sweep, run_sweep_on_cycle_thread, Progress, StopReason, SweepOutcome,
+    realtime_setup, run_sweep, run_sweep_into, run_sweep_on_cycle_thread, Progress, RecordedRows,
+    Row, RowSink, StopReason, SweepEnd, SweepOutcome,
 };
 pub use simulated::{SimulatedDrive, SimulatedFault, SimulatedPlant};
 

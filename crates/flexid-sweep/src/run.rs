@@ -241,13 +241,122 @@ pub fn run_sweep<D: CyclicDrive>(
     stop: &AtomicBool,
     progress: &mut dyn FnMut(&Progress),
 ) -> SweepOutcome {
+    let mut rows = RecordedRows::with_capacity(plan.torque_nm.len());
+    let end = run_sweep_into(drive, plan, stop, progress, &mut rows);
+    SweepOutcome {
+        recording: rows.into_recording(plan.cycle_hz, end.sidecar.clone()),
+        reason: end.reason,
+        end: end.end,
+        counters: end.counters,
+        elapsed: end.elapsed,
+        overruns: end.overruns,
+        ramp_cycles: end.ramp_cycles,
+        ramp_error: end.ramp_error,
+    }
+}
+
+/// One cycle's row as the sweep loop records it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Row {
+    /// The set-point sent [N m] (after the drive's rounding and clamping).
+    pub torque_setpoint_nm: f64,
+    /// Motor position [rad].
+    pub position_rad: f64,
+    /// Motor velocity [rad/s].
+    pub velocity_rad_s: f64,
+    /// Torque actual [N m].
+    pub torque_actual_nm: f64,
+}
+
+/// Where the sweep loop puts every recorded row, once (row `k` is cycle `k`): the loop keeps
+/// no copy of its own. Implementations must not allocate per row (they size their storage
+/// for the plan up front): `push` runs in the real-time cycle.
+pub trait RowSink {
+    /// Row `k`.
+    fn push(&mut self, k: usize, row: &Row);
+}
+
+/// The rows in four columns, for [`run_sweep`]'s recording.
+#[derive(Debug, Clone, Default)]
+pub struct RecordedRows {
+    torque: Vec<f64>,
+    position: Vec<f64>,
+    velocity: Vec<f64>,
+    torque_actual: Vec<f64>,
+}
+
+impl RecordedRows {
+    /// Room for `n` rows.
+    pub fn with_capacity(n: usize) -> Self {
+        RecordedRows {
+            torque: Vec::with_capacity(n),
+            position: Vec::with_capacity(n),
+            velocity: Vec::with_capacity(n),
+            torque_actual: Vec::with_capacity(n),
+        }
+    }
+
+    /// The recording of these rows at `fs` [Hz] with `sidecar`.
+    pub fn into_recording(self, fs: f64, sidecar: Sidecar) -> Recording {
+        Recording {
+            time_s: (0..self.torque.len()).map(|k| k as f64 / fs).collect(),
+            torque_cmd_nm: self.torque,
+            position_rad: Some(self.position),
+            velocity_rad_s: Some(self.velocity),
+            acceleration_rad_s2: None,
+            torque_actual_nm: Some(self.torque_actual),
+            sample_rate_hz: fs,
+            sidecar,
+        }
+    }
+}
+
+impl RowSink for RecordedRows {
+    fn push(&mut self, _k: usize, row: &Row) {
+        self.torque.push(row.torque_setpoint_nm);
+        self.position.push(row.position_rad);
+        self.velocity.push(row.velocity_rad_s);
+        self.torque_actual.push(row.torque_actual_nm);
+    }
+}
+
+/// How a sweep of [`run_sweep_into`] ended (its rows are in the sink).
+#[derive(Debug, Clone)]
+pub struct SweepEnd {
+    /// Rows recorded.
+    pub rows: usize,
+    /// Why it stopped.
+    pub reason: StopReason,
+    /// The sidecar's `end`.
+    pub end: RecordingEnd,
+    /// The recording's sidecar: excitation, rate, `end`, `cycle_counters` (the caller adds
+    /// `drive`, `source`, `cycle_timing`).
+    pub sidecar: Sidecar,
+    /// Counters of the exchange at the end (ramp included).
+    pub counters: Counters,
+    /// Wall time of the recorded cycles.
+    pub elapsed: Duration,
+    /// Cycles started more than half a period behind the real-time schedule.
+    pub overruns: u64,
+    /// Cycles run in the ramp to zero torque.
+    pub ramp_cycles: usize,
+    /// Why the ramp did not finish, if it did not.
+    pub ramp_error: Option<String>,
+}
+
+/// [`run_sweep`] with the rows going into `sink` (the daemon's sink streams them per
+/// period to disk and to the live estimate, so they are stored once).
+pub fn run_sweep_into<D: CyclicDrive>(
+    drive: &mut D,
+    plan: &SweepPlan,
+    stop: &AtomicBool,
+    progress: &mut dyn FnMut(&Progress),
+    sink: &mut dyn RowSink,
+) -> SweepEnd {
     let n = plan.torque_nm.len();
     let fs = plan.cycle_hz;
     let period = plan.period();
-    let mut torque = Vec::with_capacity(n);
-    let mut position = Vec::with_capacity(n);
-    let mut velocity = Vec::with_capacity(n);
-    let mut torque_actual = Vec::with_capacity(n);
+    let mut rows = 0usize;
     let info = &plan.excitation;
     let periodic = info.kind == ExcitationKind::Multisine && info.period_samples > 0;
     let report_every = if periodic {
@@ -293,10 +402,16 @@ pub fn run_sweep<D: CyclicDrive>(
                 break;
             }
         };
-        torque.push(fb.torque_setpoint_nm);
-        position.push(fb.position_rad);
-        velocity.push(fb.velocity_rad_s);
-        torque_actual.push(fb.torque_nm);
+        sink.push(
+            k,
+            &Row {
+                torque_setpoint_nm: fb.torque_setpoint_nm,
+                position_rad: fb.position_rad,
+                velocity_rad_s: fb.velocity_rad_s,
+                torque_actual_nm: fb.torque_nm,
+            },
+        );
+        rows += 1;
         last_torque = fb.torque_setpoint_nm;
         let lost = fb.counters.lost - base_lost;
         if lost > plan.max_lost_tpdos {
@@ -361,42 +476,33 @@ pub fn run_sweep<D: CyclicDrive>(
     }
 
     let counters = drive.counters();
-    let rows = torque.len();
     let end = RecordingEnd {
         complete: reason == StopReason::Complete,
         reason: reason.text(),
         cycle: stop_cycle,
     };
-    let recording = Recording {
-        time_s: (0..rows).map(|k| k as f64 / fs).collect(),
-        torque_cmd_nm: torque,
-        position_rad: Some(position),
-        velocity_rad_s: Some(velocity),
-        acceleration_rad_s2: None,
-        torque_actual_nm: Some(torque_actual),
-        sample_rate_hz: fs,
-        sidecar: Sidecar {
-            sample_rate_hz: Some(fs),
-            excitation: Some(plan.excitation.clone()),
-            io_delay_samples: Some(0),
-            ended_because: (!end.complete).then(|| end.reason.clone()),
-            end: Some(end.clone()),
-            cycle_counters: Some(CycleCounters {
-                cycles: counters.cycles,
-                missed: counters.missed,
-                late: counters.late,
-                lost: counters.lost,
-                saturated: counters.saturated,
-                malformed: counters.malformed,
-                overruns,
-            }),
-            ..Sidecar::default()
-        },
+    let sidecar = Sidecar {
+        sample_rate_hz: Some(fs),
+        excitation: Some(plan.excitation.clone()),
+        io_delay_samples: Some(0),
+        ended_because: (!end.complete).then(|| end.reason.clone()),
+        end: Some(end.clone()),
+        cycle_counters: Some(CycleCounters {
+            cycles: counters.cycles,
+            missed: counters.missed,
+            late: counters.late,
+            lost: counters.lost,
+            saturated: counters.saturated,
+            malformed: counters.malformed,
+            overruns,
+        }),
+        ..Sidecar::default()
     };
-    SweepOutcome {
-        recording,
+    SweepEnd {
+        rows,
         reason,
         end,
+        sidecar,
         counters,
         elapsed,
         overruns,

@@ -31,6 +31,7 @@ pub fn to_json(a: &Analysis) -> Value {
             "residual_rms_deg": fit.residual_rms_deg,
         })),
         "orders": a.orders,
+        "supported_band_hz": a.supported_band_hz,
         "frf": {
             "method": a.measured.method,
             "averages": a.measured.averages,

@@ -1,6 +1,6 @@
 use super::estimate::{estimate_frf, mobility_equivalent, EstimatedFrf};
 use super::summary::ModelSummary;
-use crate::frf::{Frf, FrfError, FrfKind};
+use crate::frf::{supported_band, Frf, FrfError, FrfKind};
 use crate::identify::detect::{detect_pairs, ArRPair, DetectOptions, Detection};
 use crate::identify::error::IdentifyError;
 use crate::identify::exact::{chain_from_spectra, with_coupling_damping};
@@ -106,6 +106,11 @@ pub struct Analysis {
     /// The time cap (`opts.fit.budget`) and whether it stopped the fit early; `None`
     /// without a cap.
     pub time_cap: Option<super::TimeCap>,
+    /// The band the detection and the fit used when no band was given and the estimate's
+    /// uncertainty left lines out ([`crate::frf::supported_band`]: lines whose windowed
+    /// SNR `|H| / sigma_H` is below 1 carry no information); `None` when every line was
+    /// used or a band was given.
+    pub supported_band_hz: Option<[f64; 2]>,
 }
 
 /// Analyse a recording: estimate its FRF and identify the compliant chain behind it.
@@ -155,7 +160,7 @@ fn analyze_uncapped(rec: &Recording, opts: &AnalysisOptions) -> Result<Analysis,
     };
     let fit_opts = FitOptions {
         delay_samples: delay,
-        band_hz: opts.band_hz,
+        band_hz: opts.band_hz.or(analysis.supported_band_hz),
         ..opts.fit.clone()
     };
     let fit = match opts.masses {
@@ -203,9 +208,10 @@ fn measure_and_detect(
         });
         mobility_equivalent(&measured.frf)
     };
+    let supported = supported_lines(&measured.frf, opts, &mut notes);
     let detect_opts = DetectOptions {
         delay_samples: delay,
-        band_hz: opts.band_hz,
+        band_hz: opts.band_hz.or(supported),
         ..opts.detect.clone()
     };
     let detection = detect_pairs(&work, &detect_opts)?;
@@ -224,8 +230,26 @@ fn measure_and_detect(
         model_frf: None,
         notes,
         time_cap: None,
+        supported_band_hz: supported,
     };
     Ok((analysis, work, fittable))
+}
+
+/// The band the estimate supports when no band was given and its uncertainty leaves lines
+/// out at either end; a note says where and why.
+fn supported_lines(frf: &Frf, opts: &AnalysisOptions, notes: &mut Vec<String>) -> Option<[f64; 2]> {
+    if opts.band_hz.is_some() {
+        return None;
+    }
+    let sb = supported_band(frf)?;
+    if !sb.trims() {
+        return None;
+    }
+    notes.push(format!(
+        "band used: {:.3} .. {:.3} Hz ({} of {} lines); outside it the estimate's uncertainty is larger than the response (SNR below 1), so those lines carry no information and get no weight",
+        sb.band_hz[0], sb.band_hz[1], sb.lines, sb.total_lines
+    ));
+    Some(sb.band_hz)
 }
 
 /// The chain of total inertia `j` [kg m^2] with exactly the anti-resonances and

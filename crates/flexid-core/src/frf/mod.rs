@@ -17,6 +17,7 @@
 mod error;
 mod periodic;
 mod ramp;
+mod support;
 #[cfg(test)]
 mod testutil;
 mod types;
@@ -27,6 +28,7 @@ pub use error::FrfError;
 pub use periodic::{
     estimate_periodic, NonExcitedLevels, PeriodicEstimator, DEFAULT_INFER_THRESHOLD,
 };
+pub use support::{supported_band, SupportedBand};
 pub use types::{Frf, FrfKind};
 pub use velocity::{
     difference_quotient_response, differenced_velocity, differenced_velocity_into,

@@ -1,13 +1,19 @@
 use flexid_core::analysis::Analysis;
 use std::fmt::Write;
 
+/// One sigma relative to the value, or "not identifiable" where the data do not fix the
+/// parameter: its standard deviation is undefined or larger than the value itself (a
+/// relative uncertainty above 100 % says nothing but that).
 fn pct(std: f64, v: f64) -> String {
-    if std.is_finite() && v != 0.0 {
+    if std.is_finite() && v != 0.0 && std <= v.abs() {
         format!("{:.2} %", 100.0 * std / v.abs())
     } else {
-        "n/a".into()
+        NOT_IDENTIFIABLE.into()
     }
 }
+
+/// How the report prints a parameter the data do not fix.
+pub const NOT_IDENTIFIABLE: &str = "not identifiable";
 
 /// The analysis as a readable report (units in every heading, uncertainties as one sigma):
 /// the measured FRF, step 1 (total inertia), the anti-resonance/resonance pairs, the
@@ -39,19 +45,27 @@ fn measured_section(s: &mut String, a: &Analysis) {
     let mut sorted = rel.clone();
     sorted.sort_by(f64::total_cmp);
     let median = sorted.get(sorted.len() / 2).copied().unwrap_or(f64::NAN);
+    // a relative uncertainty above 100 % is no number to read: say what it means
+    let uncertainty = if median.is_finite() && median <= 1.0 {
+        format!(
+            "{:.2} % ({:.3} dB)",
+            100.0 * median,
+            20.0 * (1.0 + median).log10()
+        )
+    } else {
+        "larger than the response (the typical line carries no information)".into()
+    };
     let _ = writeln!(
         s,
-        "FRF: {} estimator, {} {} averaged, {} lines {:.3} .. {:.3} Hz, fs {} Hz, {:?} response; median line uncertainty {:.2} % ({:.3} dB)",
+        "FRF: {} estimator, {} {} averaged, {} lines {:.3} .. {:.3} Hz, fs {} Hz, {:?} response; median line uncertainty {uncertainty}",
         m.method,
         m.averages,
         if m.method == "periodic" { "periods" } else { "segments" },
         f.len(),
-        f.freq_hz.first().copied().unwrap_or(f64::NAN),
-        f.freq_hz.last().copied().unwrap_or(f64::NAN),
+        f.freq_hz.first().copied().unwrap_or(0.0),
+        f.freq_hz.last().copied().unwrap_or(0.0),
         a.sample_rate_hz,
         f.kind,
-        100.0 * median,
-        20.0 * (1.0 + median).log10()
     );
     if a.delay_samples > 0 {
         let _ = writeln!(
@@ -211,13 +225,13 @@ fn model_section(s: &mut String, a: &Analysis) {
         );
         let _ = writeln!(
             s,
-            "  {:<6} {:>14} {:>10}",
+            "  {:<6} {:>14} {:>16}",
             "body", "J [kg m^2]", "+- 1 sigma"
         );
         for i in 0..model.masses {
             let _ = writeln!(
                 s,
-                "  J{:<5} {:>14.5e} {:>10}{}",
+                "  J{:<5} {:>14.5e} {:>16}{}",
                 i + 1,
                 model.inertia_kgm2[i],
                 pct(model.inertia_std_kgm2[i], model.inertia_kgm2[i]),
@@ -227,13 +241,13 @@ fn model_section(s: &mut String, a: &Analysis) {
         if model.masses > 1 {
             let _ = writeln!(
                 s,
-                "  {:<10} {:>14} {:>10} {:>16} {:>10}",
+                "  {:<10} {:>14} {:>16} {:>16} {:>16}",
                 "coupling", "c [N m/rad]", "+- 1 sigma", "d [N m s/rad]", "+- 1 sigma"
             );
             for i in 0..model.masses - 1 {
                 let _ = writeln!(
                     s,
-                    "  c{:<2}J{}-J{:<3} {:>14.5e} {:>10} {:>16.4e} {:>10}",
+                    "  c{:<2}J{}-J{:<3} {:>14.5e} {:>16} {:>16.4e} {:>16}",
                     i + 1,
                     i + 1,
                     i + 2,
@@ -319,6 +333,15 @@ fn freq(v: f64, std: f64, bound: bool, sign: &str) -> String {
 }
 
 fn list(v: &[f64]) -> String {
-    let items: Vec<String> = v.iter().map(|x| format!("{x:.5e}")).collect();
+    let items: Vec<String> = v
+        .iter()
+        .map(|x| {
+            if x.is_finite() {
+                format!("{x:.5e}")
+            } else {
+                "n/a".into()
+            }
+        })
+        .collect();
     format!("[{}]", items.join(", "))
 }

@@ -99,6 +99,9 @@ pub(crate) fn bode_plot<'a>(a: &'a Analysis, title: &str) -> BodePlot<'a> {
     let inside =
         |v: Vec<f64>| -> Vec<f64> { v.into_iter().filter(|f| *f >= lo && *f <= hi).collect() };
     plot = plot.anti_resonances(&inside(ar)).resonances(&inside(r));
+    if let Some(b) = a.supported_band_hz {
+        plot = plot.band_used(b);
+    }
     plot.subtitle(format!(
         "{} estimator, {} averages, band {:.3}-{:.1} Hz, fs {} Hz; shaded: +-2 sigma",
         a.measured.method, a.measured.averages, lo, hi, a.sample_rate_hz

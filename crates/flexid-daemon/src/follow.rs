@@ -250,6 +250,9 @@ fn write_bode(files: &SweepFiles, an: &Analysis, id: &str) {
     if let Some(m) = &an.model_frf {
         plot = plot.model(m, "identified chain");
     }
+    if let Some(b) = an.supported_band_hz {
+        plot = plot.band_used(b);
+    }
     if let Some(m) = &an.model {
         let (lo, hi) = (
             an.measured.frf.freq_hz.first().copied().unwrap_or(0.0),

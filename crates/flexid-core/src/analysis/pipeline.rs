@@ -246,7 +246,7 @@ fn supported_lines(frf: &Frf, opts: &AnalysisOptions, notes: &mut Vec<String>) -
         return None;
     }
     notes.push(format!(
-        "band used: {:.3} .. {:.3} Hz ({} of {} lines); outside it the estimate's uncertainty is larger than the response (SNR below 1), so those lines carry no information and get no weight",
+        "band used: {:.3} .. {:.3} Hz ({} of {} lines); outside it the response does not stand out of the estimate's own scatter (windowed SNR |H|/sigma below 2), so those lines carry no information and get no weight",
         sb.band_hz[0], sb.band_hz[1], sb.lines, sb.total_lines
     ));
     Some(sb.band_hz)

@@ -64,6 +64,7 @@ pub struct BodePlot<'a> {
     subtitle: Option<String>,
     size_px: (u32, u32),
     sigmas: f64,
+    band_used_hz: Option<[f64; 2]>,
 }
 
 /// One marker ready to draw.
@@ -88,7 +89,15 @@ impl<'a> BodePlot<'a> {
             subtitle: None,
             size_px: Self::DEFAULT_SIZE_PX,
             sigmas: 2.0,
+            band_used_hz: None,
         }
+    }
+
+    /// The band [Hz] the identification used: the lines outside it (which carry no
+    /// information: their uncertainty exceeds the response) are shaded grey.
+    pub fn band_used(mut self, band_hz: [f64; 2]) -> Self {
+        self.band_used_hz = Some(band_hz);
+        self
     }
 
     /// Add a model curve with its legend label, e.g. "identified 3-mass model". Its `var` and
@@ -214,6 +223,7 @@ impl<'a> BodePlot<'a> {
                 lo,
                 hi,
                 kind_label: magnitude_label(self.measured.kind),
+                band_used: self.band_used_hz,
             };
             self.draw(&root, &ctx)?;
             root.present().map_err(render)?;
@@ -322,6 +332,13 @@ impl<'a> BodePlot<'a> {
                     ))
                     .map_err(render)?;
                 }
+                Glyph::Unused => {
+                    area.draw(&Rectangle::new(
+                        [(gx, cy - 6), (gx + 28, cy + 6)],
+                        UNUSED.mix(UNUSED_OPACITY).filled(),
+                    ))
+                    .map_err(render)?;
+                }
                 Glyph::Triangle(c, up) => {
                     area.draw(&PathElement::new(
                         vec![(gx + 14, cy - 9), (gx + 14, cy + 9)],
@@ -342,6 +359,9 @@ impl<'a> BodePlot<'a> {
         };
         item(&mut x, "measured", Glyph::Line(MEASURED, false))?;
         item(&mut x, "±2σ uncertainty", Glyph::Band)?;
+        if ctx.band_used.is_some() {
+            item(&mut x, "no information (SNR < 2), not used", Glyph::Unused)?;
+        }
         for (i, (_, label)) in ctx.models.iter().enumerate() {
             item(&mut x, label, Glyph::Line(model_colour(i), false))?;
         }
@@ -580,13 +600,19 @@ struct Ctx<'c> {
     lo: f64,
     hi: f64,
     kind_label: String,
+    band_used: Option<[f64; 2]>,
 }
 
 enum Glyph {
     Line(RGBColor, bool),
     Band,
+    Unused,
     Triangle(RGBColor, bool),
 }
+
+/// The shade over lines outside the band used.
+const UNUSED: RGBColor = RGBColor(150, 150, 150);
+const UNUSED_OPACITY: f64 = 0.22;
 
 type Chart<'a, DB> = ChartContext<'a, DB, Cartesian2d<LogAxis, LinearAxis>>;
 
@@ -695,6 +721,19 @@ fn panel<'a, DB: DrawingBackend>(
         .axis_desc_style((FONT, 15).into_font().color(&TEXT))
         .draw()
         .map_err(render)?;
+    if let Some([a, b]) = ctx.band_used {
+        let shade = UNUSED.mix(UNUSED_OPACITY).filled();
+        for (x0, x1) in [(ctx.lo, a.max(ctx.lo)), (b.min(ctx.hi), ctx.hi)] {
+            if x1 > x0 {
+                chart
+                    .draw_series(std::iter::once(Rectangle::new(
+                        [(x0, ylo), (x1, yhi)],
+                        shade,
+                    )))
+                    .map_err(render)?;
+            }
+        }
+    }
     Ok(chart)
 }
 

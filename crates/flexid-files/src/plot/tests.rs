@@ -246,3 +246,31 @@ fn helpers() {
         "Magnitude [dB re 1 rad/(N m)]"
     );
 }
+
+#[test]
+fn lines_outside_the_band_used_are_shaded_and_named_in_the_legend() {
+    let m = measured_two_mass(true);
+    let plain = BodePlot::new(&m).render_svg().unwrap();
+    let lo = m.freq_hz[0];
+    let hi = *m.freq_hz.last().unwrap();
+    let band = [lo * 4.0, hi / 2.0];
+    let shaded = BodePlot::new(&m).band_used(band).render_svg().unwrap();
+    let grey = |svg: &str| {
+        svg.lines()
+            .filter(|l| l.contains("<rect") && l.contains("#969696"))
+            .count()
+    };
+    assert_eq!(grey(&plain), 0, "no shade without a band");
+    // both sides in the three panels, and the legend's swatch
+    assert_eq!(grey(&shaded), 2 * 3 + 1, "{}", grey(&shaded));
+    assert!(
+        shaded.contains("no information (SNR &lt; 2), not used")
+            || shaded.contains("no information (SNR < 2), not used")
+    );
+    // a band that covers everything shades nothing but keeps the legend entry
+    let whole = BodePlot::new(&m)
+        .band_used([lo / 2.0, hi * 2.0])
+        .render_svg()
+        .unwrap();
+    assert_eq!(grey(&whole), 1);
+}

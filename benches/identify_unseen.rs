@@ -195,6 +195,8 @@ struct Outcome {
     order_right: bool,
     given_order_right: bool,
     normalised: Vec<f64>,
+    /// `(f_model - f_true) / std_model` of the fitted model's frequencies (true order).
+    model_normalised: Vec<f64>,
     bad: usize,
 }
 
@@ -236,6 +238,22 @@ fn evaluate(case: &Case, verbose: bool) -> Result<Outcome, String> {
             }
         }
     }
+    // calibration of the model's frequencies (true order given)
+    let mut model_normalised = Vec::new();
+    if let Some(m) = &given.model {
+        for (est, std, truth) in [
+            (&m.antiresonance_hz, &m.antiresonance_std_hz, &ar_t),
+            (&m.resonance_hz, &m.resonance_std_hz, &r_t),
+        ] {
+            if est.len() == truth.len() {
+                for ((e, s), t) in est.iter().zip(std).zip(truth.iter()) {
+                    if (t / e - 1.0).abs() <= 0.1 && s.is_finite() && *s > 0.0 {
+                        model_normalised.push((e - t) / s);
+                    }
+                }
+            }
+        }
+    }
     let mut bad = 0;
     for a in [&auto, &given] {
         let text = render_report(a, "case");
@@ -258,6 +276,7 @@ fn evaluate(case: &Case, verbose: bool) -> Result<Outcome, String> {
         order_right: auto.model.as_ref().map(|m| m.masses) == Some(n),
         given_order_right: given_right,
         normalised,
+        model_normalised,
         bad,
     })
 }
@@ -281,6 +300,7 @@ fn main() {
     }
     let (mut n, mut pairs, mut order, mut given, mut bad_cases, mut errors) = (0, 0, 0, 0, 0, 0);
     let mut z: Vec<f64> = Vec::new();
+    let mut zm: Vec<f64> = Vec::new();
     for seed in seed0..seed0 + cases {
         let Some(case) = generate(seed) else {
             println!("seed {seed}: no chain drawn");
@@ -302,6 +322,7 @@ fn main() {
                     o.bad
                 );
                 z.extend(o.normalised);
+                zm.extend(o.model_normalised);
             }
             Err(e) => {
                 errors += 1;
@@ -320,24 +341,28 @@ fn main() {
         "pairs right with the true order given: {given} ({:.0} %)",
         pct(given)
     );
-    let within = z.iter().filter(|v| v.abs() <= 3.0).count();
-    let mut sorted: Vec<f64> = z.iter().map(|v| v.abs()).collect();
-    sorted.sort_by(f64::total_cmp);
-    let q = |p: f64| {
-        sorted
-            .get(((sorted.len() as f64 - 1.0) * p) as usize)
-            .copied()
-            .unwrap_or(f64::NAN)
+    let calibration = |what: &str, z: &[f64]| {
+        let within = z.iter().filter(|v| v.abs() <= 3.0).count();
+        let mut sorted: Vec<f64> = z.iter().map(|v| v.abs()).collect();
+        sorted.sort_by(f64::total_cmp);
+        let q = |p: f64| {
+            sorted
+                .get(((sorted.len() as f64 - 1.0) * p) as usize)
+                .copied()
+                .unwrap_or(f64::NAN)
+        };
+        println!(
+            "{what} calibration: {} of {} true frequencies within 3 sigma ({:.0} %); |z| median {:.2}, 90 % {:.1}, max {:.1}",
+            within,
+            z.len(),
+            100.0 * within as f64 / z.len().max(1) as f64,
+            q(0.5),
+            q(0.9),
+            q(1.0)
+        );
     };
-    println!(
-        "pair-table calibration: {} of {} true frequencies within 3 sigma ({:.0} %); |z| median {:.2}, 90 % {:.1}, max {:.1}",
-        within,
-        z.len(),
-        100.0 * within as f64 / z.len().max(1) as f64,
-        q(0.5),
-        q(0.9),
-        q(1.0)
-    );
+    calibration("pair-table", &z);
+    calibration("model (true order)", &zm);
     println!(
         "cases with NaN, infinity or > 100 % printed: {bad_cases} ({:.0} %)",
         pct(bad_cases)

@@ -31,8 +31,13 @@ pub struct ModelSummary {
     pub damping_std_nms_per_rad: Vec<f64>,
     /// Undamped resonances of the identified chain [Hz], ascending.
     pub resonance_hz: Vec<f64>,
+    /// Their one-sigma uncertainties [Hz], from the fit's covariance (already scaled by
+    /// the reduced chi-square where it exceeds 1) by first-order propagation.
+    pub resonance_std_hz: Vec<f64>,
     /// Undamped anti-resonances (motor locked) [Hz], ascending.
     pub antiresonance_hz: Vec<f64>,
+    /// Their one-sigma uncertainties [Hz], as `resonance_std_hz`.
+    pub antiresonance_std_hz: Vec<f64>,
     /// Damping ratio of each mode [-], in the order of `resonance_hz`.
     pub damping_ratio: Vec<f64>,
     /// Total inertia [kg m^2].
@@ -64,6 +69,7 @@ impl ModelSummary {
             })
             .collect();
         let couplings = couplings(ch, &fit.std.stiffness_nm_per_rad);
+        let (antiresonance_std_hz, resonance_std_hz) = spectra_std(fit);
         ModelSummary {
             masses: ch.masses(),
             inertia_kgm2: ch.inertia_kgm2.clone(),
@@ -73,7 +79,9 @@ impl ModelSummary {
             damping_nms_per_rad: ch.damping_nms_per_rad.clone(),
             damping_std_nms_per_rad: fit.std.damping_nms_per_rad.clone(),
             antiresonance_hz: ch.antiresonances_hz(),
+            antiresonance_std_hz,
             resonance_hz,
+            resonance_std_hz,
             damping_ratio,
             total_inertia_kgm2: ch.total_inertia(),
             couplings,
@@ -131,4 +139,126 @@ fn couplings(ch: &Chain, std: &[f64]) -> Vec<Coupling> {
         });
     }
     out
+}
+
+/// One-sigma uncertainties of the chain's anti-resonances and resonances [Hz]: the
+/// gradient of each frequency in the fit's log-parameters (forward differences of
+/// `h = 1e-6`) through the fit's covariance, `sqrt(g^T C g)`. NaN where the covariance is
+/// missing or a perturbed chain loses a frequency.
+fn spectra_std(fit: &ChainFit) -> (Vec<f64>, Vec<f64>) {
+    let ch = &fit.chain;
+    let (ar0, r0) = (ch.antiresonances_hz(), ch.resonances_hz());
+    let theta: Vec<f64> = ch
+        .inertia_kgm2
+        .iter()
+        .chain(&ch.stiffness_nm_per_rad)
+        .chain(&ch.damping_nms_per_rad)
+        .map(|v| v.ln())
+        .collect();
+    let np = theta.len();
+    let nan = |v: &[f64]| vec![f64::NAN; v.len()];
+    if fit.cov_log.len() != np * np {
+        return (nan(&ar0), nan(&r0));
+    }
+    let n = ch.masses();
+    let h = 1e-6;
+    // gradients: one column per parameter, for the anti-resonances then the resonances
+    let mut grad: Vec<Vec<f64>> = Vec::with_capacity(np);
+    for j in 0..np {
+        let mut t = theta.clone();
+        t[j] += h;
+        let c = Chain {
+            inertia_kgm2: t[..n].iter().map(|v| v.exp()).collect(),
+            stiffness_nm_per_rad: t[n..2 * n - 1].iter().map(|v| v.exp()).collect(),
+            damping_nms_per_rad: t[2 * n - 1..].iter().map(|v| v.exp()).collect(),
+        };
+        let (ar, r) = (c.antiresonances_hz(), c.resonances_hz());
+        if ar.len() != ar0.len() || r.len() != r0.len() {
+            return (nan(&ar0), nan(&r0));
+        }
+        grad.push(
+            ar.iter()
+                .zip(&ar0)
+                .chain(r.iter().zip(&r0))
+                .map(|(a, b)| (a - b) / h)
+                .collect(),
+        );
+    }
+    let m = ar0.len() + r0.len();
+    let std: Vec<f64> = (0..m)
+        .map(|k| {
+            let mut v = 0.0;
+            for a in 0..np {
+                for b in 0..np {
+                    v += grad[a][k] * fit.cov_log[a * np + b] * grad[b][k];
+                }
+            }
+            if v >= 0.0 {
+                v.sqrt()
+            } else {
+                f64::NAN
+            }
+        })
+        .collect();
+    (std[..ar0.len()].to_vec(), std[ar0.len()..].to_vec())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::identify::fit::ChainStd;
+
+    /// Against the closed form of a two-body chain: `f_AR = sqrt(c / J2) / 2 pi`, so
+    /// `d f_AR / d ln c = f_AR / 2`, `d f_AR / d ln J2 = -f_AR / 2`; with independent
+    /// log-parameters of variances `vc`, `vj2`, `sigma = f_AR / 2 sqrt(vc + vj2)`.
+    #[test]
+    fn spectra_uncertainty_matches_the_two_body_closed_form() {
+        let chain = Chain::new(vec![1e-3, 3e-3], vec![500.0], vec![0.05]).unwrap();
+        // log-parameter variances: J1, J2, c, d
+        let var = [4e-4, 9e-4, 1e-4, 2.5e-3];
+        let mut cov = vec![0.0; 16];
+        for (i, v) in var.iter().enumerate() {
+            cov[i * 4 + i] = *v;
+        }
+        let fit = ChainFit {
+            chain: chain.clone(),
+            std: ChainStd {
+                inertia_kgm2: vec![0.0; 2],
+                stiffness_nm_per_rad: vec![0.0],
+                damping_nms_per_rad: vec![0.0],
+            },
+            cov_log: cov,
+            cost: 1.0,
+            chi2_per_dof: 1.0,
+            params: 4,
+            lines_used: 100,
+            starts: 1,
+            starts_converged: 1,
+            iterations: 1,
+            evaluations_total: 1,
+            residual_rms_db: 0.0,
+            residual_rms_deg: 0.0,
+        };
+        let (ar_std, r_std) = spectra_std(&fit);
+        let f_ar = (500.0f64 / 3e-3).sqrt() / (2.0 * std::f64::consts::PI);
+        let want = f_ar / 2.0 * (var[2] + var[1]).sqrt();
+        assert!(
+            (ar_std[0] / want - 1.0).abs() < 1e-4,
+            "{} vs {want}",
+            ar_std[0]
+        );
+        // resonance: f_R = sqrt(c (1/J1 + 1/J2)) / 2 pi; d ln f_R / d ln c = 1/2,
+        // d ln f_R / d ln J1 = -(1/J1) / (2 (1/J1 + 1/J2)), likewise J2
+        let (j1, j2): (f64, f64) = (1e-3, 3e-3);
+        let f_r = (500.0 * (1.0 / j1 + 1.0 / j2)).sqrt() / (2.0 * std::f64::consts::PI);
+        let s = 1.0 / j1 + 1.0 / j2;
+        let g = [-(1.0 / j1) / (2.0 * s), -(1.0 / j2) / (2.0 * s), 0.5];
+        let want_r =
+            f_r * (g[0] * g[0] * var[0] + g[1] * g[1] * var[1] + g[2] * g[2] * var[2]).sqrt();
+        assert!(
+            (r_std[0] / want_r - 1.0).abs() < 1e-4,
+            "{} vs {want_r}",
+            r_std[0]
+        );
+    }
 }

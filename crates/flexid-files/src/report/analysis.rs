@@ -263,8 +263,16 @@ fn model_section(s: &mut String, a: &Analysis) {
                     )
                 );
             }
-            let _ = writeln!(s, "  model AR [Hz] = {}", list(&model.antiresonance_hz));
-            let _ = writeln!(s, "  model R  [Hz] = {}", list(&model.resonance_hz));
+            let _ = writeln!(
+                s,
+                "  model AR [Hz] = {}",
+                list_std(&model.antiresonance_hz, &model.antiresonance_std_hz)
+            );
+            let _ = writeln!(
+                s,
+                "  model R  [Hz] = {}",
+                list_std(&model.resonance_hz, &model.resonance_std_hz)
+            );
             let _ = writeln!(s, "  damping ratio = {}", list(&model.damping_ratio));
             let _ = writeln!(s);
             let _ = writeln!(s, "Where the compliance is:");
@@ -330,6 +338,25 @@ fn freq(v: f64, std: f64, bound: bool, sign: &str) -> String {
     } else {
         format!("{v:.3}")
     }
+}
+
+/// Frequencies with their one-sigma uncertainties (from the fit's covariance): `f +- s`,
+/// or the value alone where the uncertainty is undefined or larger than the value.
+fn list_std(v: &[f64], std: &[f64]) -> String {
+    let items: Vec<String> = v
+        .iter()
+        .zip(std.iter().chain(std::iter::repeat(&f64::NAN)))
+        .map(|(x, s)| {
+            if !x.is_finite() {
+                "n/a".into()
+            } else if s.is_finite() && *s <= x.abs() {
+                format!("{x:.3} +- {s:.3}")
+            } else {
+                format!("{x:.3} ({NOT_IDENTIFIABLE})")
+            }
+        })
+        .collect();
+    format!("[{}]", items.join(", "))
 }
 
 fn list(v: &[f64]) -> String {

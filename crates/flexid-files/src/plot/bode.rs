@@ -199,7 +199,18 @@ impl<'a> BodePlot<'a> {
                 height_px: h,
             });
         }
-        let meas = measured_curves(self.measured, self.sigmas)?;
+        let mut meas = measured_curves(self.measured, self.sigmas)?;
+        if let Some(band) = self.band_used_hz {
+            // unwrapping through lines without information runs away (thousands of
+            // degrees): unwrap inside the band only, wrap the rest around its edges
+            let wrapped: Vec<f64> = self
+                .measured
+                .h
+                .iter()
+                .map(|h| h.arg().to_degrees())
+                .collect();
+            meas.phase_deg = phase_unwrapped_in_band(&self.measured.freq_hz, &wrapped, band);
+        }
         let models = self
             .models
             .iter()
@@ -775,4 +786,62 @@ fn draw_curves<DB: DrawingBackend>(
             .map_err(render)?;
     }
     Ok(())
+}
+
+/// The phase [deg] unwrapped along frequency over the lines inside `band` [Hz] only (from
+/// the wrapped phase `wrapped_deg`); below the band every line is wrapped to within 180
+/// degrees of the band's first line, above it to within 180 degrees of its last. Without
+/// a line in the band, the wrapped phase.
+fn phase_unwrapped_in_band(freq_hz: &[f64], wrapped_deg: &[f64], band: [f64; 2]) -> Vec<f64> {
+    let inside = |f: f64| f >= band[0] && f <= band[1];
+    let (Some(i0), Some(i1)) = (
+        freq_hz.iter().position(|f| inside(*f)),
+        freq_hz.iter().rposition(|f| inside(*f)),
+    ) else {
+        return wrapped_deg.to_vec();
+    };
+    let near = |p: f64, reference: f64| p - ((p - reference) / 360.0).round() * 360.0;
+    let mut out = wrapped_deg.to_vec();
+    for i in i0 + 1..=i1 {
+        out[i] = near(wrapped_deg[i], out[i - 1]);
+    }
+    for i in 0..i0 {
+        out[i] = near(wrapped_deg[i], out[i0]);
+    }
+    for i in i1 + 1..out.len() {
+        out[i] = near(wrapped_deg[i], out[i1]);
+    }
+    out
+}
+
+#[cfg(test)]
+mod phase_tests {
+    use super::phase_unwrapped_in_band;
+
+    #[test]
+    fn the_phase_is_unwrapped_inside_the_band_and_bounded_outside() {
+        // a phase falling 30 degrees per line (wrapped), the band over lines 2..=6
+        let f: Vec<f64> = (0..12).map(|k| 1.0 + k as f64).collect();
+        let true_deg: Vec<f64> = (0..12).map(|k| -30.0 * k as f64).collect();
+        let wrapped: Vec<f64> = true_deg
+            .iter()
+            .map(|p| p - ((p + 180.0) / 360.0).floor() * 360.0)
+            .collect();
+        let out = phase_unwrapped_in_band(&f, &wrapped, [3.0, 7.0]);
+        for k in 2..=6 {
+            assert!(
+                (out[k] - (true_deg[k] - true_deg[2] + out[2])).abs() < 1e-9,
+                "{k}: {out:?}"
+            );
+        }
+        for k in (0..2).chain(7..12) {
+            let edge = if k < 2 { out[2] } else { out[6] };
+            assert!((out[k] - edge).abs() <= 180.0, "{k}: {out:?}");
+        }
+        // no line in the band: the wrapped phase
+        assert_eq!(
+            phase_unwrapped_in_band(&f, &wrapped, [100.0, 200.0]),
+            wrapped
+        );
+    }
 }

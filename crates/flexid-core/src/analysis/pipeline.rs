@@ -4,7 +4,9 @@ use crate::frf::{supported_band, Frf, FrfError, FrfKind};
 use crate::identify::detect::{detect_pairs, ArRPair, DetectOptions, Detection};
 use crate::identify::error::IdentifyError;
 use crate::identify::exact::{chain_from_spectra, with_coupling_damping};
-use crate::identify::fit::{fit_chain, select_order, ChainFit, FitOptions, OrderCandidate};
+use crate::identify::fit::{
+    fit_chain, select_confirmed_order, ChainFit, FitOptions, OrderCandidate,
+};
 use crate::identify::inertia::{estimate_inertia, estimate_inertia_below_pairs, InertiaEstimate};
 use crate::identify::paper::{step_by_step, StepByStep};
 use crate::model::{Chain, ModelError, SampledChain};
@@ -153,11 +155,7 @@ fn analyze_uncapped(rec: &Recording, opts: &AnalysisOptions) -> Result<Analysis,
     if !fittable {
         return Ok(analysis);
     }
-    let pairs = Pairs {
-        j,
-        by_prominence: by_prominence(&analysis.detection.pairs),
-        spectra,
-    };
+    let pairs = Pairs::offered(j, &analysis.detection);
     let fit_opts = FitOptions {
         delay_samples: delay,
         band_hz: opts.band_hz.or(analysis.supported_band_hz),
@@ -310,22 +308,85 @@ fn by_prominence(pairs: &[ArRPair]) -> Vec<usize> {
     order
 }
 
-/// The detected pairs as the fit's initial chains are made from them.
+/// The pairs offered to the fit, as its initial chains are made from them: the detected
+/// pairs first, then the unconfirmed ones (amplitude significant, phase rise short).
 struct Pairs {
     /// Total inertia [kg m^2].
     j: f64,
-    /// (anti-resonance, resonance) per pair [Hz], in frequency order.
+    /// (anti-resonance, resonance) per pair [Hz]: the detected pairs in frequency order,
+    /// then the unconfirmed ones.
     spectra: Vec<(f64, f64)>,
-    /// Pair indices, most prominent first.
+    /// Pair indices: the detected pairs most prominent first, then the unconfirmed ones
+    /// most prominent first.
     by_prominence: Vec<usize>,
+    /// How many of `spectra` are detected pairs.
+    confirmed: usize,
+    /// The pairs behind `spectra`, in the same order.
+    offered: Vec<ArRPair>,
 }
 
 impl Pairs {
+    /// The detected pairs and, most prominent first, the unconfirmed pairs that interlace
+    /// with them and with the more prominent unconfirmed ones kept before (a chain's
+    /// pairs occupy disjoint intervals `[AR, R]`; one that overlaps a kept pair can never
+    /// be part of the same chain).
+    fn offered(j: f64, det: &Detection) -> Pairs {
+        let confirmed = det.pairs.len();
+        let mut offered: Vec<ArRPair> = det.pairs.clone();
+        let mut order = by_prominence(&det.pairs);
+        for i in by_prominence(&det.unconfirmed) {
+            let u = &det.unconfirmed[i];
+            let disjoint = offered.iter().all(|p| u.r_hz < p.ar_hz || u.ar_hz > p.r_hz);
+            if disjoint && u.ar_hz < u.r_hz {
+                order.push(offered.len());
+                offered.push(u.clone());
+            }
+        }
+        Pairs {
+            j,
+            spectra: offered.iter().map(|p| (p.ar_hz, p.r_hz)).collect(),
+            offered,
+            by_prominence: order,
+            confirmed,
+        }
+    }
+
+    /// The `k` most prominent pairs, in frequency order, each with whether the detection
+    /// confirmed it.
+    fn selection(&self, k: usize) -> Vec<(&ArRPair, bool)> {
+        let mut sel: Vec<(&ArRPair, bool)> = self.by_prominence[..k]
+            .iter()
+            .map(|&i| (&self.offered[i], i < self.confirmed))
+            .collect();
+        sel.sort_by(|a, b| a.0.ar_hz.total_cmp(&b.0.ar_hz));
+        sel
+    }
+
+    /// The initial chain of `k > confirmed` pairs: the detected ones and the first choice
+    /// of unconfirmed ones, most prominent first, that interlaces with them.
+    fn completed_with_unconfirmed(&self, k: usize) -> Option<Chain> {
+        let unconfirmed = &self.by_prominence[self.confirmed..];
+        let need = k.checked_sub(self.confirmed).filter(|n| *n > 0)?;
+        combinations(unconfirmed.len(), need, 32)
+            .into_iter()
+            .find_map(|choice| {
+                let mut sel: Vec<(f64, f64)> = self.spectra[..self.confirmed]
+                    .iter()
+                    .copied()
+                    .chain(choice.iter().map(|&c| self.spectra[unconfirmed[c]]))
+                    .collect();
+                sel.sort_by(|a, b| a.0.total_cmp(&b.0));
+                exact_chain(self.j, &sel)
+            })
+    }
+
     /// The initial chain with the `k` most prominent pairs.
     fn chain_with(&self, k: usize) -> Option<Chain> {
-        let mut keep: Vec<usize> = self.by_prominence[..k].to_vec();
-        keep.sort_unstable();
-        let sel: Vec<(f64, f64)> = keep.iter().map(|&i| self.spectra[i]).collect();
+        let mut sel: Vec<(f64, f64)> = self.by_prominence[..k]
+            .iter()
+            .map(|&i| self.spectra[i])
+            .collect();
+        sel.sort_by(|a, b| a.0.total_cmp(&b.0));
         exact_chain(self.j, &sel)
     }
 }
@@ -342,7 +403,7 @@ fn fit_given_order(
     fit_opts: &FitOptions,
     opts: &AnalysisOptions,
 ) -> Result<ChainFit, AnalysisError> {
-    let (j, spectra) = (pairs.j, &pairs.spectra[..]);
+    let (j, spectra) = (pairs.j, &pairs.spectra[..pairs.confirmed]);
     let k = m - 1;
     let init = if k < spectra.len() {
         let choices = combinations(spectra.len(), k, 32);
@@ -378,7 +439,14 @@ fn fit_given_order(
         }
     } else if k == spectra.len() {
         pairs.chain_with(k)
+    } else if let Some(init) = pairs.completed_with_unconfirmed(k) {
+        analysis.notes.push(format!(
+            "{m} bodies asked for, {} pairs detected: the most prominent pairs whose phase rise is short of a clean pair's (unconfirmed) complete the chain",
+            spectra.len(),
+        ));
+        Some(init)
     } else {
+        let spectra = &pairs.spectra[..];
         analysis.notes.push(format!(
             "{m} bodies asked for but only {} anti-resonance/resonance pairs were detected: the missing pairs start near the top of the band",
             spectra.len()
@@ -417,17 +485,28 @@ fn fit_chosen_order(
 ) -> Result<ChainFit, AnalysisError> {
     let (j, spectra) = (pairs.j, &pairs.spectra);
     let hi = spectra.len().min(opts.max_masses.saturating_sub(1));
-    let lo = hi.saturating_sub(2);
-    let mut candidates: Vec<Chain> = (lo..=hi).filter_map(|k| pairs.chain_with(k)).collect();
+    let lo = pairs.confirmed.min(hi).saturating_sub(2);
+    let (mut candidates, mut offered): (Vec<Chain>, Vec<Vec<(&ArRPair, bool)>>) = (lo..=hi)
+        .filter_map(|k| Some((pairs.chain_with(k)?, pairs.selection(k))))
+        .unzip();
     if candidates.is_empty() {
         analysis.notes.push(format!(
             "the {} detected pairs do not form a spring-mass chain (anti-resonances and resonances must interlace): only the rigid body is fitted",
-            spectra.len()
+            pairs.confirmed
         ));
         candidates.extend(exact_chain(j, &[]));
+        offered.push(Vec::new());
     }
-    let sel = select_order(&analysis.measured.frf, &candidates, fit_opts)?;
+    let sel = select_confirmed_order(&analysis.measured.frf, &candidates, fit_opts, |k, f| {
+        moved_feature(&offered[k], &f.chain)
+    })?;
     analysis.orders = sel.candidates;
+    let extra = (sel.fit.chain.masses() - 1).saturating_sub(pairs.confirmed);
+    if extra > 0 {
+        analysis.notes.push(format!(
+            "{extra} pair(s) whose phase rise is short of a clean pair's (listed as unconfirmed) are in the model: the information criterion on the weighted residual says the data need them"
+        ));
+    }
     Ok(sel.fit)
 }
 
@@ -516,4 +595,57 @@ fn combinations(n: usize, k: usize, limit: usize) -> Vec<Vec<usize>> {
             idx[j] = idx[j - 1] + 1;
         }
     }
+}
+
+/// Whether the fit moved an unconfirmed pair's anti-resonance or resonance out of its
+/// cell: the log-frequency interval halfway to the neighbouring offered features (at the
+/// ends, mirrored). An unconfirmed pair is offered because its amplitude is significant
+/// where it was seen; a fit that moves it elsewhere uses it to fit lines where the
+/// detection saw nothing significant, so the data do not confirm that order, and the
+/// reason says where it went. Detected pairs are not checked: their significance does not
+/// rest on the fit, which may correct a detection's pairing (and a reduced order moves
+/// them to compromise between dropped ones); nor are features known only as a bound.
+fn moved_feature(offered: &[(&ArRPair, bool)], fitted: &Chain) -> Option<String> {
+    let (ar, r) = (fitted.antiresonances_hz(), fitted.resonances_hz());
+    if ar.len() != offered.len() || r.len() != offered.len() {
+        return Some(format!(
+            "{} pairs offered, the fitted chain has {}",
+            offered.len(),
+            r.len()
+        ));
+    }
+    // (offered frequency, fitted frequency, checked, name), in frequency order
+    let mut features = Vec::with_capacity(2 * offered.len());
+    for (k, (p, confirmed)) in offered.iter().enumerate() {
+        features.push((
+            p.ar_hz,
+            ar[k],
+            !confirmed && !p.ar_below_band,
+            "anti-resonance",
+        ));
+        features.push((p.r_hz, r[k], !confirmed && !p.r_above_band, "resonance"));
+    }
+    let ln: Vec<f64> = features.iter().map(|f| f.0.ln()).collect();
+    for (i, &(o, m, checked, name)) in features.iter().enumerate() {
+        if !checked || ln.len() < 2 {
+            continue;
+        }
+        let below = if i > 0 {
+            ln[i] - ln[i - 1]
+        } else {
+            ln[1] - ln[0]
+        };
+        let above = if i + 1 < ln.len() {
+            ln[i + 1] - ln[i]
+        } else {
+            below
+        };
+        let d = m.ln() - ln[i];
+        if d < -0.5 * below || d > 0.5 * above {
+            return Some(format!(
+                "the fit moved the unconfirmed {name} offered at {o:.2} Hz to {m:.2} Hz, where no significant feature was seen"
+            ));
+        }
+    }
+    None
 }

@@ -140,6 +140,14 @@ pub struct Detection {
     /// it behaves as a free chain.
     #[serde(default)]
     pub peaks: Vec<ResonancePeak>,
+    /// Notch/peak pairs whose amplitude passes the significance thresholds but whose phase
+    /// does not rise by `min_phase_rise_deg` between them (a heavily damped pair, or two
+    /// features only a few lines apart), refined like accepted pairs, ascending in
+    /// frequency. Not pairs of the detection: the order selection offers them to the
+    /// fit, which keeps one only when the information criterion on the weighted residual
+    /// says the data need it.
+    #[serde(default)]
+    pub unconfirmed: Vec<ArRPair>,
     /// Candidates that were rejected (only those with a prominence above 1 dB and 3 sigma,
     /// so that plain noise does not fill the report).
     pub rejected: Vec<RejectedCandidate>,
@@ -274,6 +282,7 @@ pub fn detect_pairs(frf: &Frf, opts: &DetectOptions) -> Result<Detection, Identi
         paired_peaks: Vec::new(),
         det: Detection {
             pairs: Vec::new(),
+            unconfirmed: Vec::new(),
             peaks: Vec::new(),
             rejected: Vec::new(),
             notes: Vec::new(),
@@ -289,6 +298,7 @@ pub fn detect_pairs(frf: &Frf, opts: &DetectOptions) -> Result<Detection, Identi
     det.peaks = peaks;
     det.peaks.sort_by(|a, b| a.freq_hz.total_cmp(&b.freq_hz));
     det.pairs.sort_by(|a, b| a.r_hz.total_cmp(&b.r_hz));
+    det.unconfirmed.sort_by(|a, b| a.r_hz.total_cmp(&b.r_hz));
     det.rejected.sort_by(|a, b| a.freq_hz.total_cmp(&b.freq_hz));
     Ok(det)
 }
@@ -416,6 +426,18 @@ impl Pairing<'_> {
                     det.pairs.push(p);
                     self.lower_bound = n.i;
                     return true;
+                }
+                if n.prom >= opts.min_sigma * n.sigma && c.prom >= opts.min_sigma * c.sigma {
+                    let upper = cands.get(k + 2).map_or(m, |x| x.i);
+                    det.unconfirmed.push(refine_pair(
+                        nr,
+                        y,
+                        Some(c),
+                        Some(n),
+                        lower_bound,
+                        upper,
+                        rise,
+                    ));
                 }
                 det.rejected.push(reject(
                     f,
@@ -684,9 +706,17 @@ fn refine_pair(
             .collect::<Vec<_>>(),
         fc,
     );
+    // the neighbouring extrema bound the pair: features interlace
+    let (f_min, f_max) = (
+        if lo_idx > 0 { f[lo_idx] } else { 0.0 },
+        if hi_idx < m { f[hi_idx] } else { f64::INFINITY },
+    );
     let accept = |v: Option<super::local_fit::Refined>, c: f64| {
         v.filter(|x| {
-            x.hz.is_finite() && x.hz > 0.0 && (x.hz / c).ln().abs() < 0.5 * span.ln().max(0.05)
+            x.hz.is_finite()
+                && x.hz > f_min
+                && x.hz < f_max
+                && (x.hz / c).ln().abs() < 0.5 * span.ln().max(0.05)
         })
     };
     let mut pair = ArRPair {

@@ -279,6 +279,21 @@ pub fn select_order(
     candidates: &[Chain],
     opts: &FitOptions,
 ) -> Result<OrderSelection, IdentifyError> {
+    select_confirmed_order(frf, candidates, opts, |_, _| None)
+}
+
+/// [`select_order`] where a fitted candidate also has to pass `confirm(k, fit)` (candidate
+/// index, its best fit): `Some(reason)` takes it out of the choice, and its
+/// [`OrderCandidate::error`] says why. Used to refuse a fit that moved an offered pair to
+/// where no significant feature was seen (a further pair can always lower the cost a
+/// little by fitting a run of noisy lines somewhere in thousands of them; the information
+/// criterion alone does not know that the pair's position was free).
+pub fn select_confirmed_order(
+    frf: &Frf,
+    candidates: &[Chain],
+    opts: &FitOptions,
+    confirm: impl Fn(usize, &ChainFit) -> Option<String>,
+) -> Result<OrderSelection, IdentifyError> {
     if candidates.is_empty() {
         return Err(IdentifyError::InvalidArgument(
             "no candidate order given".into(),
@@ -303,7 +318,8 @@ pub fn select_order(
         let cand = match f {
             Ok(f) => {
                 let bic = f.cost / s2 + params as f64 * n_res.ln();
-                if best.is_none_or(|b| bic < b.0) {
+                let refused = confirm(k, f);
+                if refused.is_none() && best.is_none_or(|b| bic < b.0) {
                     best = Some((bic, k));
                 }
                 OrderCandidate {
@@ -312,7 +328,7 @@ pub fn select_order(
                     cost: f.cost,
                     chi2_per_dof: f.chi2_per_dof,
                     bic,
-                    error: None,
+                    error: refused,
                 }
             }
             Err(e) => OrderCandidate {
@@ -326,7 +342,19 @@ pub fn select_order(
         };
         report.push(cand);
     }
-    let (_, k) = best.expect("at least one fit succeeded");
+    let Some((_, k)) = best else {
+        return Err(IdentifyError::InvalidArgument(format!(
+            "no candidate order was confirmed: {}",
+            report
+                .iter()
+                .filter_map(|c| c
+                    .error
+                    .as_ref()
+                    .map(|e| format!("{} bodies: {e}", c.masses)))
+                .collect::<Vec<_>>()
+                .join("; ")
+        )));
+    };
     let fit = fits.into_iter().nth(k).unwrap().unwrap();
     Ok(OrderSelection {
         fit,

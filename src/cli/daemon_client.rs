@@ -350,15 +350,22 @@ pub fn parameter_table(model: &Value) -> String {
     for (sym, key, std_key, unit) in groups {
         let vals = model[key].as_array().cloned().unwrap_or_default();
         for (i, v) in vals.iter().enumerate() {
-            let v = v.as_f64().unwrap_or(f64::NAN);
-            let s = model[std_key][i].as_f64().unwrap_or(f64::NAN);
-            out += &format!(
-                "{:<10} {:>14.6e} {:>14.3e} {:>7.2}%  {unit}\n",
-                format!("{sym}{}", i + 1),
-                v,
-                s,
-                100.0 * s / v.abs()
-            );
+            let name = format!("{sym}{}", i + 1);
+            // null (or an uncertainty above the value): not identifiable from the data
+            match (v.as_f64(), model[std_key][i].as_f64()) {
+                (Some(v), Some(s)) if s.is_finite() && s <= v.abs() => {
+                    out += &format!(
+                        "{name:<10} {v:>14.6e} {s:>14.3e} {:>7.2}%  {unit}\n",
+                        100.0 * s / v.abs()
+                    );
+                }
+                _ => {
+                    out += &format!(
+                        "{name:<10} {:>14} {:>14} {:>8}  {unit}\n",
+                        "not identifiable", "", ""
+                    )
+                }
+            }
         }
     }
     let hz = |k: &str| {

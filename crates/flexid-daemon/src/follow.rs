@@ -228,20 +228,24 @@ fn finite(x: f64) -> f64 {
 }
 
 /// The retained `<prefix>/<axis>/model` message.
+/// The values come from the model's honest serialisation: `null` where a parameter is
+/// not identifiable, with the `identifiable` flags.
 pub fn model_message(id: &str, axis: &str, m: &flexid_core::analysis::ModelSummary) -> Value {
+    let v = serde_json::to_value(m).unwrap_or(Value::Null);
     json!({
         "axis": axis,
         "sweep_id": id,
         "time_unix_s": super::store::unix_now(),
         "masses": m.masses,
-        "inertia_kgm2": m.inertia_kgm2,
-        "inertia_std_kgm2": m.inertia_std_kgm2,
-        "stiffness_nm_per_rad": m.stiffness_nm_per_rad,
-        "stiffness_std_nm_per_rad": m.stiffness_std_nm_per_rad,
-        "damping_nms_per_rad": m.damping_nms_per_rad,
-        "damping_std_nms_per_rad": m.damping_std_nms_per_rad,
-        "resonance_hz": m.resonance_hz,
-        "antiresonance_hz": m.antiresonance_hz,
+        "inertia_kgm2": v["inertia_kgm2"],
+        "inertia_std_kgm2": v["inertia_std_kgm2"],
+        "stiffness_nm_per_rad": v["stiffness_nm_per_rad"],
+        "stiffness_std_nm_per_rad": v["stiffness_std_nm_per_rad"],
+        "damping_nms_per_rad": v["damping_nms_per_rad"],
+        "damping_std_nms_per_rad": v["damping_std_nms_per_rad"],
+        "resonance_hz": v["resonance_hz"],
+        "antiresonance_hz": v["antiresonance_hz"],
+        "identifiable": v["identifiable"],
     })
 }
 

@@ -17,7 +17,14 @@ pub struct Coupling {
 }
 
 /// The identified model as reported and published (`"model"` object of the JSON output).
-#[derive(Debug, Clone, Serialize)]
+///
+/// Serialised honestly: a parameter or frequency whose one-sigma uncertainty is undefined
+/// or larger than its value is not identifiable from the data, so its value and its
+/// uncertainty are written as `null` and `"identifiable"` (`{"inertia", "stiffness",
+/// "damping", "resonance", "antiresonance"}`, one flag per entry) says which; an
+/// undefined modal damping ratio is `null` too. No NaN, infinity or relative uncertainty
+/// above 100 % is ever written as a number.
+#[derive(Debug, Clone)]
 pub struct ModelSummary {
     pub masses: usize,
     /// `J1..Jn` [kg m^2], motor first, and their one-sigma uncertainties.
@@ -44,6 +51,71 @@ pub struct ModelSummary {
     pub total_inertia_kgm2: f64,
     /// Where the compliant couplings are, softest-mode first.
     pub couplings: Vec<Coupling>,
+}
+
+/// Whether a value with one-sigma uncertainty `std` is identifiable: both defined and the
+/// uncertainty not larger than the value.
+pub fn identifiable(value: f64, std: f64) -> bool {
+    value.is_finite() && std.is_finite() && std <= value.abs()
+}
+
+/// `values` and `stds` with the entries that are not [`identifiable`] set to `None`, and
+/// the flags.
+fn honest(values: &[f64], stds: &[f64]) -> (Vec<Option<f64>>, Vec<Option<f64>>, Vec<bool>) {
+    let flags: Vec<bool> = values
+        .iter()
+        .enumerate()
+        .map(|(i, v)| identifiable(*v, stds.get(i).copied().unwrap_or(f64::NAN)))
+        .collect();
+    let keep = |xs: &[f64]| -> Vec<Option<f64>> {
+        xs.iter()
+            .zip(&flags)
+            .map(|(x, ok)| ok.then_some(*x))
+            .collect()
+    };
+    (keep(values), keep(stds), flags)
+}
+
+impl Serialize for ModelSummary {
+    fn serialize<S: serde::Serializer>(&self, ser: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeMap;
+        let (j, j_sd, j_ok) = honest(&self.inertia_kgm2, &self.inertia_std_kgm2);
+        let (c, c_sd, c_ok) = honest(&self.stiffness_nm_per_rad, &self.stiffness_std_nm_per_rad);
+        let (d, d_sd, d_ok) = honest(&self.damping_nms_per_rad, &self.damping_std_nms_per_rad);
+        let (r, r_sd, r_ok) = honest(&self.resonance_hz, &self.resonance_std_hz);
+        let (a, a_sd, a_ok) = honest(&self.antiresonance_hz, &self.antiresonance_std_hz);
+        let zeta: Vec<Option<f64>> = self
+            .damping_ratio
+            .iter()
+            .map(|z| z.is_finite().then_some(*z))
+            .collect();
+        let mut m = ser.serialize_map(Some(15))?;
+        m.serialize_entry("masses", &self.masses)?;
+        m.serialize_entry("inertia_kgm2", &j)?;
+        m.serialize_entry("inertia_std_kgm2", &j_sd)?;
+        m.serialize_entry("stiffness_nm_per_rad", &c)?;
+        m.serialize_entry("stiffness_std_nm_per_rad", &c_sd)?;
+        m.serialize_entry("damping_nms_per_rad", &d)?;
+        m.serialize_entry("damping_std_nms_per_rad", &d_sd)?;
+        m.serialize_entry("resonance_hz", &r)?;
+        m.serialize_entry("resonance_std_hz", &r_sd)?;
+        m.serialize_entry("antiresonance_hz", &a)?;
+        m.serialize_entry("antiresonance_std_hz", &a_sd)?;
+        m.serialize_entry("damping_ratio", &zeta)?;
+        m.serialize_entry("total_inertia_kgm2", &self.total_inertia_kgm2)?;
+        m.serialize_entry("couplings", &self.couplings)?;
+        m.serialize_entry(
+            "identifiable",
+            &serde_json::json!({
+                "inertia": j_ok,
+                "stiffness": c_ok,
+                "damping": d_ok,
+                "resonance": r_ok,
+                "antiresonance": a_ok,
+            }),
+        )?;
+        m.end()
+    }
 }
 
 impl ModelSummary {
@@ -207,6 +279,47 @@ fn spectra_std(fit: &ChainFit) -> (Vec<f64>, Vec<f64>) {
 mod tests {
     use super::*;
     use crate::identify::fit::ChainStd;
+
+    #[test]
+    fn parameters_the_data_do_not_identify_are_null_with_a_flag() {
+        let m = ModelSummary {
+            masses: 2,
+            inertia_kgm2: vec![1e-3, 2e-3],
+            inertia_std_kgm2: vec![1e-5, 5e-3],
+            stiffness_nm_per_rad: vec![400.0],
+            stiffness_std_nm_per_rad: vec![f64::NAN],
+            damping_nms_per_rad: vec![0.02],
+            damping_std_nms_per_rad: vec![f64::INFINITY],
+            resonance_hz: vec![110.0],
+            resonance_std_hz: vec![0.4],
+            antiresonance_hz: vec![70.0],
+            antiresonance_std_hz: vec![0.3],
+            damping_ratio: vec![f64::NAN],
+            total_inertia_kgm2: 3e-3,
+            couplings: Vec::new(),
+        };
+        let v = serde_json::to_value(&m).unwrap();
+        assert_eq!(v["inertia_kgm2"], serde_json::json!([1e-3, null]));
+        assert_eq!(v["inertia_std_kgm2"], serde_json::json!([1e-5, null]));
+        assert_eq!(v["stiffness_nm_per_rad"], serde_json::json!([null]));
+        assert_eq!(v["damping_std_nms_per_rad"], serde_json::json!([null]));
+        assert_eq!(v["resonance_hz"], serde_json::json!([110.0]));
+        assert_eq!(v["damping_ratio"], serde_json::json!([null]));
+        assert_eq!(
+            v["identifiable"],
+            serde_json::json!({"inertia": [true, false], "stiffness": [false],
+                "damping": [false], "resonance": [true], "antiresonance": [true]})
+        );
+        let text = serde_json::to_string(&v).unwrap().to_lowercase();
+        let words: Vec<&str> = text
+            .split(|c: char| ",:[]{}\"".contains(c))
+            .filter(|w| !w.is_empty())
+            .collect();
+        assert!(
+            !words.iter().any(|w| ["nan", "inf", "infinity"].contains(w)),
+            "{text}"
+        );
+    }
 
     /// Against the closed form of a two-body chain: `f_AR = sqrt(c / J2) / 2 pi`, so
     /// `d f_AR / d ln c = f_AR / 2`, `d f_AR / d ln J2 = -f_AR / 2`; with independent

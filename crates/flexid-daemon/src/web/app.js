@@ -266,7 +266,11 @@ function showParams(r) {
   const m = r.model;
   const row = (name, v, s, unit) => {
     const tr = body.insertRow();
-    const cells = [name, fmt(v), Number.isFinite(s) ? `${fmt(s)} (${(100 * s / Math.abs(v)).toFixed(1)} %)` : '–', unit];
+    // null, or an uncertainty above the value: the data do not identify the parameter
+    const known = Number.isFinite(v) && Number.isFinite(s) && s <= Math.abs(v);
+    const cells = known
+      ? [name, fmt(v), `${fmt(s)} (${(100 * s / Math.abs(v)).toFixed(1)} %)`, unit]
+      : [name, 'not identifiable', '–', unit];
     cells.forEach((c, i) => {
       const td = tr.insertCell();
       td.textContent = c;
@@ -280,7 +284,7 @@ function showParams(r) {
       row(`c${i + 1} stiffness`, v, m.stiffness_std_nm_per_rad[i], 'N m/rad'));
     m.damping_nms_per_rad.forEach((v, i) =>
       row(`d${i + 1} damping`, v, m.damping_std_nms_per_rad[i], 'N m s/rad'));
-    const hz = (a) => (a || []).map((f) => f.toFixed(1)).join(', ') || '–';
+    const hz = (a) => (a || []).map((f) => (Number.isFinite(f) ? f.toFixed(1) : 'not identifiable')).join(', ') || '–';
     $('modes').textContent = `${m.masses} masses · resonances ${hz(m.resonance_hz)} Hz · ` +
       `anti-resonances ${hz(m.antiresonance_hz)} Hz · total inertia ${fmt(m.total_inertia_kgm2)} kg m²`;
   } else {

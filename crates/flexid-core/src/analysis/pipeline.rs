@@ -326,7 +326,9 @@ struct Pairs {
 }
 
 impl Pairs {
-    /// The detected pairs and, most prominent first, the unconfirmed pairs that interlace
+    /// The detected pairs and, most significant first (prominence in standard deviations:
+    /// a noise notch can be deep in dB where the lines scatter), the unconfirmed pairs that
+    /// interlace
     /// with them and with the more prominent unconfirmed ones kept before (a chain's
     /// pairs occupy disjoint intervals `[AR, R]`; one that overlaps a kept pair can never
     /// be part of the same chain).
@@ -334,7 +336,12 @@ impl Pairs {
         let confirmed = det.pairs.len();
         let mut offered: Vec<ArRPair> = det.pairs.clone();
         let mut order = by_prominence(&det.pairs);
-        for i in by_prominence(&det.unconfirmed) {
+        let mut by_sigma: Vec<usize> = (0..det.unconfirmed.len()).collect();
+        by_sigma.sort_by(|&a, &b| {
+            let s = |i: usize| det.unconfirmed[i].prominence_sigma;
+            s(b).total_cmp(&s(a))
+        });
+        for i in by_sigma {
             let u = &det.unconfirmed[i];
             let disjoint = offered.iter().all(|p| u.r_hz < p.ar_hz || u.ar_hz > p.r_hz);
             if disjoint && u.ar_hz < u.r_hz {
@@ -484,7 +491,11 @@ fn fit_chosen_order(
     opts: &AnalysisOptions,
 ) -> Result<ChainFit, AnalysisError> {
     let (j, spectra) = (pairs.j, &pairs.spectra);
-    let hi = spectra.len().min(opts.max_masses.saturating_sub(1));
+    // the detected pairs with up to two dropped or up to two unconfirmed ones added
+    let hi = spectra
+        .len()
+        .min(pairs.confirmed + 2)
+        .min(opts.max_masses.saturating_sub(1));
     let lo = pairs.confirmed.min(hi).saturating_sub(2);
     let (mut candidates, mut offered): (Vec<Chain>, Vec<Vec<(&ArRPair, bool)>>) = (lo..=hi)
         .filter_map(|k| Some((pairs.chain_with(k)?, pairs.selection(k))))

@@ -83,6 +83,10 @@ pub struct ArRPair {
     pub depth_db: f64,
     /// Prominence of the peak [dB] (0 when not observed).
     pub height_db: f64,
+    /// Significance of the pair: the smaller of the notch's and the peak's prominence in
+    /// standard deviations of the lines involved (of the one observed, if only one is).
+    #[serde(default)]
+    pub prominence_sigma: f64,
     /// The anti-resonance lies below the lowest line: only the resonance was seen.
     pub ar_below_band: bool,
     /// The resonance lies above the highest line: only the anti-resonance was seen.
@@ -727,6 +731,11 @@ fn refine_pair(
         phase_rise_deg: rise.to_degrees(),
         depth_db: 0.0,
         height_db: 0.0,
+        prominence_sigma: ar
+            .iter()
+            .chain(r.iter())
+            .map(|c| c.prom / c.sigma)
+            .fold(f64::INFINITY, f64::min),
         ar_below_band: ar.is_none(),
         r_above_band: r.is_none(),
     };

@@ -16,6 +16,7 @@ pub fn to_json(a: &Analysis) -> Value {
         "model": a.model,
         "total_inertia": a.total_inertia,
         "pairs": a.detection.pairs,
+        "unconfirmed_pairs": a.detection.unconfirmed,
         "resonance_peaks_hz": a.detection.peaks.iter().map(|p| p.freq_hz).collect::<Vec<_>>(),
         "resonance_peaks": a.detection.peaks,
         "rejected_candidates": a.detection.rejected,

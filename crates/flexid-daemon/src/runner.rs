@@ -56,6 +56,9 @@ pub(crate) fn run(mut job: Job) {
     if m.has_model {
         job.svc.set_last_result(&axis, &id);
     }
+    // free the axis before the last events: a client acting on "ended" (a new sweep, the
+    // axes list) finds it idle, as the two-level runner does
+    job.svc.release(&axis);
     job.hub.publish("result", m.result.to_string());
     job.hub.publish(
         "ended",
@@ -63,5 +66,4 @@ pub(crate) fn run(mut job: Job) {
             .to_string(),
     );
     tracing::info!("axis {axis}: sweep {id} ended: {}", m.reason);
-    job.svc.release(&axis);
 }

@@ -130,6 +130,18 @@ fn white_noise_two_mass_with_offset_needs_no_band() {
             m.antiresonance_hz,
             m.resonance_hz
         );
+        // the estimator's choices, from the record length, are reported
+        let choices = a
+            .notes
+            .iter()
+            .find(|n| n.starts_with("FRF: Welch H1"))
+            .unwrap_or_else(|| panic!("no estimator note in {:?}", a.notes));
+        assert!(
+            choices.contains("segments of 8192 samples (0.4883 Hz lines)")
+                && choices.contains("mean removed")
+                && choices.contains("differenced"),
+            "{choices}"
+        );
         let band = a.supported_band_hz.expect("the band is trimmed");
         assert!(band[1] < 0.25 * fs, "band used {band:?}");
         assert!(

@@ -23,6 +23,9 @@ pub struct EstimatedFrf {
     pub motion: MotionSignal,
     /// Steady periods (periodic) or segments (Welch) averaged.
     pub averages: usize,
+    /// How the estimate was made, in words for the report: the estimator, window,
+    /// segment or period length and resolution, averages, what was removed.
+    pub choices: String,
 }
 
 /// Estimate the torque -> motion FRF of a recording.
@@ -53,12 +56,20 @@ pub fn estimate_frf(
         let mut est = frf::PeriodicEstimator::from_info(info, fs, kind)?;
         est.push(u, &y)?;
         let frf = est.estimate()?;
+        let choices = format!(
+            "FRF: periodic estimator, {} steady periods of {} samples averaged ({:.4} Hz lines, no window: the excitation is periodic), line variance from the period-to-period scatter{}",
+            est.periods_done(),
+            info.period_samples,
+            fs / info.period_samples as f64,
+            motion_words(motion)
+        );
         EstimatedFrf {
             nonexcited: est.nonexcited().ok(),
             averages: est.periods_done(),
             frf,
             method: "periodic",
             motion,
+            choices,
         }
     } else {
         let n = u.len();
@@ -74,12 +85,21 @@ pub fn estimate_frf(
         }
         let mut w = frf::WelchH1::new(nperseg, nperseg / 2, frf::Window::Hann, fs)?.with_kind(kind);
         w.push(u, &y)?;
+        let choices = format!(
+            "FRF: Welch H1 (the excitation is not periodic), {n} samples ({:.1} s) in {} Hann-windowed segments of {nperseg} samples ({:.4} Hz lines), half overlapping ({:.1} independent averages); the segment grows with the record to keep at least 16 segments, up to {MAX_SEGMENT} samples; each segment's mean removed (a velocity offset); line variance from the coherence and the averages{}",
+            n as f64 / fs,
+            w.segments(),
+            fs / nperseg as f64,
+            w.effective_averages(),
+            motion_words(motion)
+        );
         EstimatedFrf {
             frf: w.estimate()?,
             nonexcited: None,
             averages: w.segments(),
             method: "welch_h1",
             motion,
+            choices,
         }
     };
     let band = band_hz.or_else(|| {
@@ -111,6 +131,17 @@ pub fn estimate_frf(
         return Err(AnalysisError::NoLines);
     }
     Ok(out)
+}
+
+/// How the motion signal entered the estimate, as a clause of the choices sentence.
+fn motion_words(motion: MotionSignal) -> &'static str {
+    match motion {
+        MotionSignal::Position => {
+            "; the position differenced to a velocity (a drift becomes an offset, which carries no line)"
+        }
+        MotionSignal::Velocity => "; the recorded velocity",
+        MotionSignal::Acceleration => "; the recorded acceleration",
+    }
 }
 
 /// A mobility-like view of an FRF whose kind the chain fit does not take: a measured

@@ -193,6 +193,7 @@ fn measure_and_detect(
     if let Some(src) = &rec.sidecar.source {
         notes.push(format!("source: {src}"));
     }
+    notes.push(measured.choices.clone());
     let fittable = matches!(
         measured.frf.kind,
         FrfKind::DifferencedVelocity | FrfKind::Position

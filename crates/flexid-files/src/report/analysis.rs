@@ -207,6 +207,33 @@ fn inverse_section(s: &mut String, a: &Analysis) {
     }
 }
 
+/// What the reduced chi-square says about the model and the uncertainties. With `dof =
+/// 2 lines - params` degrees of freedom and residuals at the noise level, `chi2/dof` is
+/// 1 +- sqrt(2/dof); above 1 + 3 sqrt(2/dof) the model leaves structure the noise does
+/// not explain, and the fit's covariance has been scaled by `chi2/dof` (the standard
+/// deviations by its square root).
+pub(crate) fn chi2_statement(chi2_per_dof: f64, lines: usize, params: usize) -> String {
+    let dof = (2 * lines).saturating_sub(params).max(1) as f64;
+    let spread = (2.0 / dof).sqrt();
+    if !chi2_per_dof.is_finite() {
+        "reduced chi-square undefined (no degrees of freedom): uncertainties from the line variances alone".into()
+    } else if chi2_per_dof > 1.0 + 3.0 * spread {
+        format!(
+            "residual above the measurement noise (chi2/dof {chi2_per_dof:.2}, noise alone gives 1 +- {spread:.3}): the model misses part of the response; uncertainties scaled by sqrt(chi2/dof) = {:.2}",
+            chi2_per_dof.sqrt()
+        )
+    } else {
+        format!(
+            "residual at the measurement noise (chi2/dof {chi2_per_dof:.2}, noise alone gives 1 +- {spread:.3}): uncertainties from the line variances{}",
+            if chi2_per_dof > 1.0 {
+                format!(", scaled by sqrt(chi2/dof) = {:.2}", chi2_per_dof.sqrt())
+            } else {
+                String::new()
+            }
+        )
+    }
+}
+
 /// The identified model: inertias, stiffnesses and dampings with one sigma, its modes,
 /// where the compliance is, and the model orders tried.
 fn model_section(s: &mut String, a: &Analysis) {
@@ -222,6 +249,11 @@ fn model_section(s: &mut String, a: &Analysis) {
             fit.residual_rms_db,
             fit.residual_rms_deg,
             fit.lines_used
+        );
+        let _ = writeln!(
+            s,
+            "  {}",
+            chi2_statement(fit.chi2_per_dof, fit.lines_used, fit.params)
         );
         let _ = writeln!(
             s,
@@ -371,4 +403,22 @@ fn list(v: &[f64]) -> String {
         })
         .collect();
     format!("[{}]", items.join(", "))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::chi2_statement;
+
+    #[test]
+    fn the_report_says_when_the_uncertainties_are_scaled_by_model_error() {
+        // 1000 lines, 7 parameters: noise alone gives 1 +- 0.032
+        let at_noise = chi2_statement(1.03, 1000, 7);
+        assert!(at_noise.contains("at the measurement noise"), "{at_noise}");
+        let model_error = chi2_statement(1.5, 1000, 7);
+        assert!(
+            model_error.contains("misses part of the response") && model_error.contains("1.22"),
+            "{model_error}"
+        );
+        assert!(chi2_statement(f64::NAN, 2, 4).contains("undefined"));
+    }
 }

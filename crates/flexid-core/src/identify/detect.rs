@@ -367,17 +367,8 @@ impl Pairing<'_> {
                     if kind == ExtremumKind::Notch && db >= opts.min_depth_db {
                         weak_notches.push(c);
                     }
-                    det.rejected.push(reject(
-                        f,
-                        &c,
-                        format!(
-                            "prominence {db:.1} dB / {:.1} sigma below the thresholds \
-                         ({} dB, {} sigma)",
-                            prom / sigma,
-                            opts.min_depth_db,
-                            opts.min_sigma
-                        ),
-                    ));
+                    det.rejected
+                        .push(reject(f, &c, weak_reason(db, prom / sigma, opts)));
                 }
             }
         }
@@ -555,6 +546,28 @@ impl Pairing<'_> {
                 }
             })
             .collect()
+    }
+}
+
+/// Why a notch or peak of `db` [dB] and `n_sigma` standard deviations is not a candidate,
+/// naming only the test it failed: "7.6 dB below 6 dB" read as a contradiction when it was
+/// the sigma test that failed.
+fn weak_reason(db: f64, n_sigma: f64, opts: &DetectOptions) -> String {
+    let deep = db >= opts.min_depth_db;
+    let significant = n_sigma >= opts.min_sigma;
+    match (deep, significant) {
+        (true, false) => format!(
+            "{db:.1} dB deep enough, but only {n_sigma:.1} standard deviations of the lines' scatter: needs {}",
+            opts.min_sigma
+        ),
+        (false, true) => format!(
+            "{n_sigma:.1} standard deviations, but only {db:.1} dB: needs {} dB",
+            opts.min_depth_db
+        ),
+        _ => format!(
+            "only {db:.1} dB and {n_sigma:.1} standard deviations: needs {} dB and {}",
+            opts.min_depth_db, opts.min_sigma
+        ),
     }
 }
 
@@ -849,6 +862,21 @@ mod tests {
             .rejected
             .iter()
             .any(|r| r.kind == ExtremumKind::Peak && (r.freq_hz / 30.0 - 1.0).abs() < 0.02));
+    }
+
+    #[test]
+    fn rejection_reasons_name_the_test_that_failed() {
+        let o = DetectOptions::default();
+        let r = weak_reason(7.6, 3.2, &o);
+        assert!(
+            r.contains("deep enough") && r.contains("3.2") && r.contains("needs 5"),
+            "{r}"
+        );
+        assert!(!r.contains("below 6"), "{r}");
+        let r = weak_reason(2.0, 9.0, &o);
+        assert!(r.contains("only 2.0 dB") && r.contains("needs 6 dB"), "{r}");
+        let r = weak_reason(2.0, 3.0, &o);
+        assert!(r.contains("needs 6 dB and 5"), "{r}");
     }
 
     #[test]

@@ -126,6 +126,10 @@ fn pairs_section(s: &mut String, a: &Analysis) {
     } else {
         let _ = writeln!(
             s,
+            "  (located on the measurement; +- from a local fit around each pair, line scatter only: the identified model's frequencies below carry the uncertainty to quote)"
+        );
+        let _ = writeln!(
+            s,
             "  {:>4}  {:>20}  {:>20}  {:>11}  {:>7}  {:>10}",
             "pair", "AR [Hz]", "R [Hz]", "(fR/fAR)^2", "L [dB]", "rise [deg]"
         );
@@ -142,6 +146,16 @@ fn pairs_section(s: &mut String, a: &Analysis) {
                 p.phase_rise_deg
             );
         }
+    }
+    for p in &a.detection.unconfirmed {
+        let _ = writeln!(
+            s,
+            "  unconfirmed {} / {} Hz ({:.0} sigma, phase rise only {:.0} deg): offered to the order selection, kept only if the data need it",
+            freq(p.ar_hz, p.ar_std_hz, p.ar_below_band, "<").trim(),
+            freq(p.r_hz, p.r_std_hz, p.r_above_band, ">").trim(),
+            p.prominence_sigma,
+            p.phase_rise_deg
+        );
     }
     let mut rejected: Vec<_> = a.detection.rejected.iter().collect();
     rejected.sort_by(|x, y| y.prominence_sigma.total_cmp(&x.prominence_sigma));
@@ -337,6 +351,9 @@ fn model_section(s: &mut String, a: &Analysis) {
                     Some(e) if e.contains(flexid_core::identify::fit::NOT_TRIED) => {
                         format!("{} bodies not tried (time cap)", o.masses)
                     }
+                    Some(e) if o.cost.is_finite() => {
+                        format!("{} bodies BIC {:.1} refused ({e})", o.masses, o.bic)
+                    }
                     Some(e) => format!("{} bodies failed ({e})", o.masses),
                     None => format!(
                         "{} bodies BIC {:.1}{}",
@@ -362,11 +379,26 @@ fn notes_section(s: &mut String, a: &Analysis) {
     }
 }
 
+/// `x +- s` with at least 3 decimals and as many more (up to 8) as the uncertainty's two
+/// leading digits need: never "+- 0.000" for an uncertainty that is not zero.
+fn pm(x: f64, s: f64) -> String {
+    let d = if s > 0.0 {
+        ((-s.log10()).ceil() as i64 + 1).clamp(3, 8) as usize
+    } else {
+        3
+    };
+    if s > 0.0 && s < 0.5 * 10f64.powi(-(d as i32)) {
+        // below what 8 decimals show: the uncertainty in exponent form
+        return format!("{x:.d$} +- {s:.1e}");
+    }
+    format!("{x:.d$} +- {s:.d$}")
+}
+
 fn freq(v: f64, std: f64, bound: bool, sign: &str) -> String {
     if bound {
         format!("{sign} {v:.3} (edge)")
     } else if std.is_finite() {
-        format!("{v:.3} +- {std:.3}")
+        pm(v, std)
     } else {
         format!("{v:.3}")
     }
@@ -382,7 +414,7 @@ fn list_std(v: &[f64], std: &[f64]) -> String {
             if !x.is_finite() {
                 "n/a".into()
             } else if s.is_finite() && *s <= x.abs() {
-                format!("{x:.3} +- {s:.3}")
+                pm(*x, *s)
             } else {
                 format!("{x:.3} ({NOT_IDENTIFIABLE})")
             }
@@ -408,6 +440,14 @@ fn list(v: &[f64]) -> String {
 #[cfg(test)]
 mod tests {
     use super::chi2_statement;
+
+    #[test]
+    fn uncertainties_keep_two_significant_digits() {
+        assert_eq!(super::pm(2.899123, 2.04e-5), "2.899123 +- 0.000020");
+        assert_eq!(super::pm(380.0829, 0.037), "380.083 +- 0.037");
+        assert_eq!(super::pm(5.0, 0.0), "5.000 +- 0.000");
+        assert_eq!(super::pm(5.0, 3e-12), "5.00000000 +- 3.0e-12");
+    }
 
     #[test]
     fn the_report_says_when_the_uncertainties_are_scaled_by_model_error() {

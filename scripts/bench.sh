@@ -123,6 +123,21 @@ wexe=$(cargo build --release --bench withheld_effect --message-format=json 2>/de
     sed -n 's/.*"executable":"\([^"]*withheld_effect[^"]*\)".*/\1/p' | tail -n 1)
 "${pin[@]}" "$wexe" "$cases" | tee "$root/target/bench/withheld_effect.txt"
 
+# Identification on chains it was never tuned on (benches/identify_unseen.rs) and its speed
+# on 10^6-sample recordings (benches/identify_speed.rs). --quick: 4 held-out cases and one
+# timing run; full: 40 held-out cases (seeds from 200000) and 5 runs.
+if [ ${#mode[@]} -gt 0 ]; then
+    unseen=4; runs=1
+else
+    unseen=40; runs=5
+fi
+uexe=$(cargo build --release --bench identify_unseen --message-format=json 2>/dev/null |
+    sed -n 's/.*"executable":"\([^"]*identify_unseen[^"]*\)".*/\1/p' | tail -n 1)
+"$uexe" "$unseen" --seed 200000 | tee "$root/target/bench/identify_unseen.txt"
+sexe=$(cargo build --release --bench identify_speed --message-format=json 2>/dev/null |
+    sed -n 's/.*"executable":"\([^"]*identify_speed[^"]*\)".*/\1/p' | tail -n 1)
+"${pin[@]}" "$sexe" "$runs" | tee "$root/target/bench/identify_speed.txt"
+
 # 6. The daemon under load (benches/daemon_load.rs): the real daemon with 1 and 2 axes
 #    sweeping in real time on flexid-vdrive processes against itself idle: CPU share per
 #    axis, the period-end -> Bode latency on the event stream (p50/p99) and the cycle

@@ -73,11 +73,29 @@ fn excitation(seed: u64, rms: f64) -> (Vec<f64>, flexid::excitation::ExcitationI
     (m.repeat(7), m.info(5, 2))
 }
 
+/// How the nominal plant varies from the benchmark's original one (all off: the original).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Variation {
+    /// Viscous friction from the motor to the ground in every plant (corner `b / J_total`
+    /// of 0.3-3 Hz), which the nominal model must carry without naming an effect.
+    pub viscous: bool,
+}
+
 /// Generate one case of `class` into `dir` (created). Returns the recordings and the truth.
 pub fn generate(class: &str, seed: u64, dir: &Path) -> Case {
+    generate_with(class, seed, dir, Variation::default())
+}
+
+/// [`generate`] on a varied nominal plant.
+pub fn generate_with(class: &str, seed: u64, dir: &Path, var: Variation) -> Case {
     std::fs::create_dir_all(dir).unwrap();
     let mut rng = rand::rngs::StdRng::seed_from_u64(seed ^ 0x5eed_d1a9);
     let ch = chain(&mut rng);
+    // drawn from its own stream so that the original cases stay the same
+    let nominal_b = {
+        let mut r = rand::rngs::StdRng::seed_from_u64(seed ^ 0x0b5c_0005);
+        ch.total_inertia() * 2.0 * std::f64::consts::PI * r.random_range(0.3..3.0)
+    };
     let exc: Vec<_> = LEVELS_NM
         .iter()
         .map(|&l| excitation(seed.wrapping_mul(31) + 7, l))
@@ -175,6 +193,14 @@ pub fn generate(class: &str, seed: u64, dir: &Path) -> Case {
             truth["bearing_damping_nms_per_rad"] = b.into();
         }
         other => panic!("unknown class {other}"),
+    }
+    if var.viscous {
+        let f = e.friction.get_or_insert(Friction {
+            coulomb_nm: 0.0,
+            viscous_nms_per_rad: 0.0,
+        });
+        f.viscous_nms_per_rad += nominal_b;
+        truth["nominal_viscous_nms_per_rad"] = nominal_b.into();
     }
     let spec = PlantSpec {
         chain: ch.clone(),

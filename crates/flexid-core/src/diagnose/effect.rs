@@ -5,8 +5,8 @@
 use serde::{Deserialize, Serialize};
 use std::fmt;
 
-/// An unmodelled effect the diagnosis can name, or `None` (no effect explains the gap
-/// better than the nominal chain).
+/// An unmodelled effect the diagnosis can name, `None` (the gap is within the noise, or no
+/// effect is needed), or `Unexplained` (the gap is real but no candidate explains it).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Effect {
@@ -26,6 +26,9 @@ pub enum Effect {
     UnmodelledMode,
     /// Gravity (a stiffness to the ground, and its viscous part).
     Gravity,
+    /// Not a candidate: the verdict when the gap is significant but no candidate explains
+    /// it significantly (the localised bands say where to look).
+    Unexplained,
 }
 
 impl Effect {
@@ -52,12 +55,16 @@ impl Effect {
             Effect::CurrentLoop => "current_loop",
             Effect::UnmodelledMode => "unmodelled_mode",
             Effect::Gravity => "gravity",
+            Effect::Unexplained => "unexplained",
         }
     }
 
-    /// The effect of a wire name, if it is one.
+    /// The effect of a wire name, if it is one (the candidates and `unexplained`).
     pub fn from_name(name: &str) -> Option<Effect> {
-        Effect::ALL.into_iter().find(|e| e.name() == name)
+        Effect::ALL
+            .into_iter()
+            .chain([Effect::Unexplained])
+            .find(|e| e.name() == name)
     }
 }
 

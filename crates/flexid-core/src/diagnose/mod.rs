@@ -393,6 +393,7 @@ pub fn diagnose(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Diagnosis,
     stage.lap("prepare");
     let n = opts.masses.max(1);
     let nom_lin = fit_nominal(&data, n, opts.band_hz)?;
+    let (nom_lin, viscous_note) = effects::viscous::nominal_with_viscous(&data, &nom_lin);
     let nominal = effects::finish_linear(&data, Effect::None, nom_lin.clone(), vec![], 0);
     stage.lap("nominal");
 
@@ -411,12 +412,18 @@ pub fn diagnose(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Diagnosis,
         opts.force_nonlinear,
         &mut candidates,
     );
-    let (mut fits, notes) = (candidates.fits, candidates.notes);
+    let (mut fits, mut notes) = (candidates.fits, candidates.notes);
+    notes.insert(0, viscous_note);
     keep_better_gravity(&mut fits, ground_as_gravity);
 
     let (ranking, win) = rank::rank(&data, &nominal, &fits, &residual);
     let winner = win.map(|i| fits[i].clone());
-    let verdict = winner.as_ref().map(|w| w.effect).unwrap_or(Effect::None);
+    // no candidate named: the gap is noise (`none`) or real but unexplained
+    let verdict = match &winner {
+        Some(w) => w.effect,
+        None if !residual.within_noise => Effect::Unexplained,
+        None => Effect::None,
+    };
     let gap = gap_of(&data, &nominal, winner.as_ref());
     stage.lap("rank");
     Ok(Diagnosis {

@@ -66,16 +66,29 @@ pub fn rank(
         None,
     ));
     r.sort_by(|a, b| b.0.score.total_cmp(&a.0.score));
-    let best = &r[0];
-    let win = match best.1 {
-        Some(i)
-            if !residual.within_noise
-                && best.0.score > 0.0
-                && fits[i].chi2 < (1.0 - MIN_REDUCTION) * nominal.chi2 =>
-        {
-            Some(i)
-        }
-        _ => None,
-    };
+    // the best candidate whose improvement is significant and whose own defining parameter
+    // is significantly different from zero: significance before a name
+    let win = r.iter().find_map(|(rk, i)| {
+        let i = (*i)?;
+        (!residual.within_noise
+            && rk.score > 0.0
+            && fits[i].chi2 < (1.0 - MIN_REDUCTION) * nominal.chi2
+            && defining_parameter_significant(&fits[i]))
+        .then_some(i)
+    });
     (r.into_iter().map(|x| x.0).collect(), win)
+}
+
+/// Whether an effect's defining parameter (its first: the friction torque, the gap, the
+/// delay, the loop's bandwidth, the extra inertia, `m g l`, ...) is at least
+/// [`super::effects::viscous::SIGNIFICANT_SIGMA`] standard deviations from zero. A
+/// parameter without an uncertainty (a nonlinear fit that reports none) is not held
+/// against the effect: its significance then rests on the gap reduction alone.
+pub fn defining_parameter_significant(e: &EffectFit) -> bool {
+    match e.params.first() {
+        Some(p) if p.std.is_finite() && p.std > 0.0 => {
+            p.value.abs() >= super::effects::viscous::SIGNIFICANT_SIGMA * p.std
+        }
+        _ => true,
+    }
 }

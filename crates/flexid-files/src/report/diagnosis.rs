@@ -14,6 +14,12 @@ pub fn render(d: &Diagnosis) -> String {
         d.data.lines()
     );
     let _ = writeln!(s, "\nVERDICT: {}", d.verdict);
+    if d.verdict == flexid_core::diagnose::Effect::Unexplained {
+        let _ = writeln!(
+            s,
+            "  the gap is larger than the noise, but no candidate explains it significantly: look at the bands below and the candidates' results; the cause may be outside the library"
+        );
+    }
     let _ = writeln!(
         s,
         "gap (systematic RMS log-complex, noise removed, 1 rad of phase = 8.69 dB): before {:.3} dB, after {:.3} dB ({:.1}x)\n  plain RMS incl. noise {:.3} -> {:.3} dB; noise alone {:.3} dB",

@@ -13,6 +13,7 @@ pub mod friction;
 pub mod gravity;
 pub mod hardening;
 pub mod mode;
+pub mod viscous;
 
 use super::lti::{Discrete, LinExt, Loop};
 use super::Data;

@@ -89,3 +89,38 @@ fn diagnose_cli_writes_the_contract_json_and_svg() {
         .unwrap();
     assert_eq!(bad.status.code(), Some(2));
 }
+
+/// Viscous friction from the motor to the ground is part of the nominal model, not an
+/// effect: on plants that have it and nothing else, the verdict is `none` (the earlier
+/// diagnosis named `gravity` on every one of them), and the first note says the damping
+/// was found significant and kept in the nominal model.
+#[test]
+fn viscous_friction_to_the_ground_is_nominal_not_gravity() {
+    use common::withheld::{generate_with, Variation};
+    let dir = tempfile::tempdir().unwrap();
+    for k in 0..2u64 {
+        let seed = 1000 + k;
+        let case = generate_with(
+            "none",
+            seed,
+            &dir.path().join(format!("none-{k}")),
+            Variation { viscous: true },
+        );
+        let d = diagnose_case(&case);
+        assert_eq!(d.verdict, "none", "seed {seed}: notes {:?}", d.notes);
+        let note = &d.notes[0];
+        assert!(
+            note.contains("viscous friction motor-ground")
+                && note.contains("significant, part of the nominal model"),
+            "seed {seed}: {note}"
+        );
+        let truth: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&case.truth_path).unwrap()).unwrap();
+        let b_true = truth["nominal_viscous_nms_per_rad"].as_f64().unwrap();
+        let b = d.nominal.lin.motor_b;
+        assert!(
+            (b / b_true - 1.0).abs() < 0.25,
+            "seed {seed}: b {b:.3e} against {b_true:.3e}"
+        );
+    }
+}

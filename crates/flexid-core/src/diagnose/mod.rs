@@ -393,7 +393,8 @@ pub fn diagnose(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Diagnosis,
     stage.lap("prepare");
     let n = opts.masses.max(1);
     let nom_lin = fit_nominal(&data, n, opts.band_hz)?;
-    let (nom_lin, viscous_note) = effects::viscous::nominal_with_viscous(&data, &nom_lin);
+    let viscous = effects::viscous::nominal_with_viscous(&data, &nom_lin);
+    let nom_lin = viscous.nominal.clone();
     let nominal = effects::finish_linear(&data, Effect::None, nom_lin.clone(), vec![], 0);
     stage.lap("nominal");
 
@@ -403,6 +404,12 @@ pub fn diagnose(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Diagnosis,
 
     let mut candidates = Candidates::new(&mut stage);
     fit_linear_candidates(&data, &nom_lin, &mut candidates);
+    if let (false, Some((with, _))) = (viscous.significant, &viscous.with_viscous) {
+        // viscous friction not significant on the nominal chain alone (a large gap
+        // elsewhere can hide it): each linear effect is also tried on top of it, the
+        // damping counted as one more parameter
+        fit_linear_candidates_with_viscous(&data, with, &mut candidates);
+    }
     let ground_as_gravity =
         fit_extra_mode(&data, &nominal, &nom_lin, n, opts.band_hz, &mut candidates);
     fit_amplitude_candidates(
@@ -413,8 +420,9 @@ pub fn diagnose(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Diagnosis,
         &mut candidates,
     );
     let (mut fits, mut notes) = (candidates.fits, candidates.notes);
-    notes.insert(0, viscous_note);
+    notes.insert(0, viscous.note.clone());
     keep_better_gravity(&mut fits, ground_as_gravity);
+    gravity_beyond_viscous(&data, &mut fits, &viscous, &mut notes);
 
     let (ranking, win) = rank::rank(&data, &nominal, &fits, &residual);
     let winner = win.map(|i| fits[i].clone());
@@ -562,6 +570,59 @@ fn fit_linear_candidates(data: &Data, nom_lin: &LinExt, c: &mut Candidates) {
         Effect::CurrentLoop,
     );
     c.push(effects::gravity::fit(data, nom_lin), Effect::Gravity);
+}
+
+/// The linear candidates on the nominal chain with viscous friction to the ground that was
+/// not significant alone: kept only where better than the same effect without it by more
+/// than the damping's BIC price (one parameter more, counted in `added`).
+fn fit_linear_candidates_with_viscous(data: &Data, with: &LinExt, c: &mut Candidates) {
+    for (fit, effect) in [
+        (effects::delay::fit(data, with), Effect::TimeDelay),
+        (effects::current_loop::fit(data, with), Effect::CurrentLoop),
+    ] {
+        let Some(mut f) = fit else { continue };
+        f.added += 1;
+        f.params.push(effects::EffectFit::param(
+            "viscous_nms_per_rad",
+            f.lin.motor_b,
+            f64::NAN,
+        ));
+        let pen = (data.lines() as f64).ln();
+        match c.fits.iter().position(|g| g.effect == effect) {
+            Some(i) if c.fits[i].chi2 - f.chi2 > pen => c.fits[i] = f,
+            Some(_) => {}
+            None => c.fits.push(f),
+        }
+    }
+}
+
+/// Gravity is a ground stiffness plus a ground damper: its stiffness must be significant
+/// beyond viscous friction alone (the damper without the spring), else the candidate is
+/// viscous friction in disguise (`m g l` at its floor with a meaningless tiny
+/// uncertainty) and is dropped with a note.
+fn gravity_beyond_viscous(
+    data: &Data,
+    fits: &mut Vec<EffectFit>,
+    viscous: &effects::viscous::ViscousNominal,
+    notes: &mut Vec<String>,
+) {
+    let Some((_, c_visc)) = viscous.with_viscous else {
+        return;
+    };
+    let pen = (data.lines() as f64).ln();
+    if let Some(i) = fits.iter().position(|f| f.effect == Effect::Gravity) {
+        let reduction = c_visc - fits[i].chi2;
+        // the reduction against the line noise, scaled by the model's own excess
+        let scale = (fits[i].chi2 / data.lines().max(1) as f64).max(1.0);
+        let z2 = reduction / scale;
+        let threshold = effects::viscous::SIGNIFICANT_SIGMA.powi(2);
+        if reduction <= pen || z2 < threshold {
+            notes.push(format!(
+                "gravity dropped: its ground stiffness lowers chi2 by only {reduction:.4e} below viscous friction alone ({z2:.1} scaled; needs {threshold:.0} and the BIC price {pen:.1})"
+            ));
+            fits.remove(i);
+        }
+    }
 }
 
 /// The extra body (an unmodelled mode), started from the identification with one body more

@@ -3,8 +3,11 @@
 //! nominal chain without it leaves a gap at low frequency that the first candidate bringing
 //! a ground damper (gravity) would take. Kept only when the data say it is there: the cost
 //! falls by more than the parameter's BIC price `ln(lines)`, and the damping is
-//! significantly above zero (at least 3 standard deviations, its uncertainty scaled by the
-//! reduced chi-square where that exceeds 1). Otherwise it is zero.
+//! significantly above zero (at least 3 standard deviations). Its uncertainty is scaled by
+//! the reduced chi-square of the lines where the damping has leverage (the sandwich
+//! estimator for one parameter), not of the whole band: a large gap elsewhere (a delay at
+//! the top of the band) must not hide a damping the low lines clearly show. Otherwise it
+//! is zero.
 
 use super::{fit_best_start, log_std, model_on, Lin};
 use crate::diagnose::lti::LinExt;
@@ -14,9 +17,22 @@ use crate::diagnose::Data;
 /// one-sided probability that noise alone reaches it is 0.13 %.
 pub const SIGNIFICANT_SIGMA: f64 = 3.0;
 
+/// The outcome of [`nominal_with_viscous`].
+pub struct ViscousNominal {
+    /// The nominal model: with viscous friction when it is significant.
+    pub nominal: LinExt,
+    /// The fit with viscous friction, significant or not (`None`: it could not be
+    /// fitted), and its chi².
+    pub with_viscous: Option<(LinExt, f64)>,
+    /// Whether `nominal` carries the viscous friction.
+    pub significant: bool,
+    /// What was found, for the notes.
+    pub note: String,
+}
+
 /// The nominal model with or without viscous friction to the ground, and a note saying
 /// which and why.
-pub fn nominal_with_viscous(data: &Data, nominal: &LinExt) -> (LinExt, String) {
+pub fn nominal_with_viscous(data: &Data, nominal: &LinExt) -> ViscousNominal {
     let jt = nominal.chain.total_inertia();
     let w0 = 2.0 * std::f64::consts::PI * data.f_min().max(1e-3);
     let starts: Vec<LinExt> = [0.003, 0.03, 0.3, 3.0]
@@ -28,17 +44,19 @@ pub fn nominal_with_viscous(data: &Data, nominal: &LinExt) -> (LinExt, String) {
         })
         .collect();
     let Some((m, r)) = fit_best_start(data, Lin::Viscous, &starts, 40, 2) else {
-        return (
-            nominal.clone(),
-            "viscous friction to the ground: could not be fitted; the nominal model has none"
+        return ViscousNominal {
+            nominal: nominal.clone(),
+            with_viscous: None,
+            significant: false,
+            note: "viscous friction to the ground: could not be fitted; the nominal model has none"
                 .into(),
-        );
+        };
     };
     let lines = data.lines().max(1) as f64;
     let chi2 = |l: &LinExt| data.chi2(&model_on(l, data.fs, data.kind, &data.full_targets));
     let (c0, c1) = (chi2(nominal), chi2(&m));
     let n = m.chain.masses();
-    let std = log_std(&r, 3 * n - 2, m.motor_b) * (c1 / lines).max(1.0).sqrt();
+    let std = log_std(&r, 3 * n - 2, m.motor_b) * leverage_weighted_excess(data, &m).sqrt();
     let z = m.motor_b / std;
     let significant = c0 - c1 > lines.ln() && std.is_finite() && z >= SIGNIFICANT_SIGMA;
     let words = if std.is_finite() {
@@ -52,15 +70,48 @@ pub fn nominal_with_viscous(data: &Data, nominal: &LinExt) -> (LinExt, String) {
             m.motor_b, c0, c1
         )
     };
-    if significant {
-        (
-            m,
-            format!("{words}: significant, part of the nominal model"),
-        )
+    let note = if significant {
+        format!("{words}: significant, part of the nominal model")
     } else {
-        (
-            nominal.clone(),
-            format!("{words}: not significant, the nominal model has none"),
-        )
+        format!("{words}: not significant on its own, the nominal model has none (the linear candidates are also tried with it)")
+    };
+    ViscousNominal {
+        nominal: if significant {
+            m.clone()
+        } else {
+            nominal.clone()
+        },
+        with_viscous: Some((m, c1)),
+        significant,
+        note,
+    }
+}
+
+/// The sandwich (heteroscedasticity-consistent) variance of `ln b` over its classical one,
+/// at least 1: `sum g_i^2 z_i^2 / sum g_i^2`, with `g_i` the weighted change of line `i`
+/// under a small change of `ln b` and `z_i^2` the line's weighted residual. Equal to the
+/// reduced chi-square when the residual is uniform; the residual where the damping does
+/// not act does not count.
+fn leverage_weighted_excess(data: &Data, m: &LinExt) -> f64 {
+    let eps = 1e-3;
+    let mut moved = m.clone();
+    moved.motor_b *= 1.0 + eps;
+    let m0 = model_on(m, data.fs, data.kind, &data.full_targets);
+    let m1 = model_on(&moved, data.fs, data.kind, &data.full_targets);
+    let (mut num, mut den) = (0.0, 0.0);
+    for ((l, a), b) in data.levels.iter().zip(&m0).zip(&m1) {
+        let z = crate::diagnose::localise::z2(&l.h, &l.var, a);
+        let g = crate::diagnose::localise::z2(a, &l.var, b);
+        for (zi, gi) in z.iter().zip(&g) {
+            if zi.is_finite() && gi.is_finite() {
+                num += gi * zi;
+                den += gi;
+            }
+        }
+    }
+    if den > 0.0 {
+        (num / den).max(1.0)
+    } else {
+        1.0
     }
 }

@@ -514,7 +514,7 @@ fn polish_spring(
     p: f64,
     make: &impl Fn(usize, f64) -> Nl,
 ) -> (LinExt, f64, f64, f64) {
-    use super::effects::{build, model_on, theta};
+    use super::effects::{build_on, model_on, theta};
     let steady = Some(POLISH_STEADY_PERIODS);
     let n = start.chain.masses();
     let lin_res = |lin: &LinExt| -> Option<Vec<f64>> {
@@ -535,7 +535,7 @@ fn polish_spring(
     let mut c0 = cost(&r);
     let mut lambda = 1e-2;
     for _ in 0..POLISH_ITERS {
-        let Some(lin) = build(&t, n, Lin::None) else {
+        let Some(lin) = build_on(start, &t, n, Lin::None) else {
             break;
         };
         let Some(r0l) = lin_res(&lin) else { break };
@@ -546,7 +546,7 @@ fn polish_spring(
             let h = 1e-4;
             let mut tp = t.clone();
             tp[j] += h;
-            match build(&tp, n, Lin::None).and_then(|l| lin_res(&l)) {
+            match build_on(start, &tp, n, Lin::None).and_then(|l| lin_res(&l)) {
                 Some(rp) => {
                     for i in 0..m {
                         jac[(i, j)] = (rp[i] - r0l[i]) / h;
@@ -581,7 +581,9 @@ fn polish_spring(
             };
             let tn: Vec<f64> = t.iter().zip(step.iter()).map(|(a, b)| a + b).collect();
             let lpn = lp + step[nt];
-            if let Some(rn) = build(&tn, n, Lin::None).and_then(|l| sim_res(&l, lpn.exp())) {
+            if let Some(rn) =
+                build_on(start, &tn, n, Lin::None).and_then(|l| sim_res(&l, lpn.exp()))
+            {
                 let cn = cost(&rn);
                 if cn < c0 {
                     t = tn;
@@ -599,7 +601,7 @@ fn polish_spring(
             break;
         }
     }
-    match build(&t, n, Lin::None) {
+    match build_on(start, &t, n, Lin::None) {
         Some(l) => (l, lp.exp(), f64::NAN, c0),
         None => (start.clone(), p, f64::NAN, f64::INFINITY),
     }

@@ -116,7 +116,14 @@ pub fn render(d: &Diagnosis) -> String {
         let ps: Vec<String> = k
             .params
             .iter()
-            .map(|p| format!("{} = {:.4e} +- {:.1e}", p.name, p.value, p.std))
+            .map(|p| {
+                // an uncertainty that was not computed is said so, never printed as NaN
+                if p.std.is_finite() {
+                    format!("{} = {:.4e} +- {:.1e}", p.name, p.value, p.std)
+                } else {
+                    format!("{} = {:.4e} (uncertainty not computed)", p.name, p.value)
+                }
+            })
             .collect();
         let _ = writeln!(
             s,

@@ -128,9 +128,13 @@ pub fn theta(m: &LinExt, k: Lin) -> Vec<f64> {
     t
 }
 
-/// The model a parameter vector describes (`n`: bodies of its chain).
-pub fn build(t: &[f64], n: usize, k: Lin) -> Option<LinExt> {
-    let mut m = LinExt::nominal(chain_of(t, n)?);
+/// The model a parameter vector describes (`n`: bodies of its chain), on top of `base`:
+/// the extensions `k` does not fit (viscous friction of the nominal model, ...) are kept
+/// as `base` has them (they used to be reset, so that a candidate fitted on a nominal
+/// model with viscous friction lost it).
+pub fn build_on(base: &LinExt, t: &[f64], n: usize, k: Lin) -> Option<LinExt> {
+    let mut m = base.clone();
+    m.chain = chain_of(t, n)?;
     let e = &t[3 * n - 2..];
     match k {
         Lin::None | Lin::Mode => {}
@@ -229,8 +233,10 @@ pub fn fit_linear(
     let n = start.chain.masses();
     let t0 = theta(start, k);
     debug_assert_eq!(t0.len(), 3 * n - 2 + k.extra());
-    let r = minimise(&t0, iters, |t| residuals(&build(t, n, k)?, data, targets))?;
-    Some((build(&r.x, n, k)?, r))
+    let r = minimise(&t0, iters, |t| {
+        residuals(&build_on(start, t, n, k)?, data, targets)
+    })?;
+    Some((build_on(start, &r.x, n, k)?, r))
 }
 
 /// Screen `starts` by their cost (one evaluation each) and refine the best `keep` of them;
@@ -282,11 +288,11 @@ pub fn prefit_then_joint(
     let r0 = minimise(&t0[nc..], 30, |e| {
         let mut t = chain_t.clone();
         t.extend_from_slice(e);
-        residuals(&build(&t, n, k)?, data, &data.targets)
+        residuals(&build_on(start, &t, n, k)?, data, &data.targets)
     })?;
     let mut t1 = chain_t.clone();
     t1.extend(r0.x);
-    let s1 = build(&t1, n, k)?;
+    let s1 = build_on(start, &t1, n, k)?;
     fit_linear(data, &data.targets, k, &s1, iters)
 }
 

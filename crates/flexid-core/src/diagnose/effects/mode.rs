@@ -10,7 +10,7 @@
 //! at 5.8/7.3 Hz (chi² 487, reached from 7 of the 36 starts); after
 //! [`PREFIT_ITERS`] iterations of the body alone the starts near the true pair lead.
 
-use super::{build, finish_linear, fit_linear, residuals, theta, EffectFit, Lin, Param};
+use super::{build_on, finish_linear, fit_linear, residuals, theta, EffectFit, Lin, Param};
 use crate::diagnose::lti::LinExt;
 use crate::diagnose::Data;
 use crate::diagnose::Effect;
@@ -129,7 +129,11 @@ fn prefit_body(data: &Data, start: &LinExt, iters: usize) -> Option<(f64, LinExt
         t
     };
     let r = minimise(&e0, iters, |e| {
-        residuals(&build(&full(e), n, Lin::Mode)?, data, &data.targets)
+        residuals(
+            &build_on(start, &full(e), n, Lin::Mode)?,
+            data,
+            &data.targets,
+        )
     })?;
-    Some((r.cost, build(&full(&r.x), n, Lin::Mode)?))
+    Some((r.cost, build_on(start, &full(&r.x), n, Lin::Mode)?))
 }

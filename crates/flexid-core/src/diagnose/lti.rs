@@ -102,12 +102,29 @@ impl LinExt {
     }
 }
 
+/// Largest entry of `A t` [1] [`zoh`] discretises: `e^(1e12)` is far past any mode a
+/// sampled axis can have (a rate of 1e12 per sample), and well inside what the matrix
+/// exponential handles.
+pub const ZOH_MAX_NORM: f64 = 1e12;
+
 /// `(e^(A t), int_0^t e^(Aσ) dσ B)`.
+///
+/// A model no physical axis has (an entry of `A t` beyond [`ZOH_MAX_NORM`], or not finite:
+/// a trial step of a fit far outside the plausible) gives NaN matrices at once, which the
+/// fits reject: nalgebra's scaling-and-squaring exponential does not return for such
+/// matrices (a held-out diagnosis case hung in it for minutes).
 pub fn zoh(a: &DMatrix<f64>, b: &DMatrix<f64>, t: f64) -> (DMatrix<f64>, DMatrix<f64>) {
     let (ns, ni) = (a.nrows(), b.ncols());
     let mut aug = DMatrix::<f64>::zeros(ns + ni, ns + ni);
     aug.view_mut((0, 0), (ns, ns)).copy_from(&(a * t));
     aug.view_mut((0, ns), (ns, ni)).copy_from(&(b * t));
+    let norm = aug.amax();
+    if !(norm.is_finite() && norm <= ZOH_MAX_NORM) {
+        return (
+            DMatrix::from_element(ns, ns, f64::NAN),
+            DMatrix::from_element(ns, ni, f64::NAN),
+        );
+    }
     let e = aug.exp();
     (
         e.view((0, 0), (ns, ns)).into_owned(),
@@ -348,6 +365,23 @@ impl Discrete {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn an_absurd_model_is_refused_at_once_not_exponentiated() {
+        let mut a = DMatrix::<f64>::zeros(4, 4);
+        a[(0, 2)] = 1.0;
+        a[(2, 0)] = -1e100;
+        let b = DMatrix::<f64>::from_element(4, 1, 1.0);
+        let t = std::time::Instant::now();
+        let (ad, phi) = zoh(&a, &b, 5e-4);
+        assert!(ad.iter().all(|v| v.is_nan()) && phi.iter().all(|v| v.is_nan()));
+        assert!(t.elapsed().as_secs_f64() < 1.0);
+        a[(2, 0)] = f64::INFINITY;
+        assert!(zoh(&a, &b, 5e-4).0[(0, 0)].is_nan());
+        // a plausible stiff axis still discretises
+        a[(2, 0)] = -1e9;
+        assert!(zoh(&a, &b, 5e-4).0.iter().all(|v| v.is_finite()));
+    }
     use crate::model::SampledChain;
 
     fn chain3() -> Chain {

@@ -11,10 +11,13 @@ use flexid::excitation::{AmplitudeShape, MultisineDesign, PhaseDesign};
 use flexid::identify::fit::FitOptions;
 use flexid::model::Chain;
 use flexid::plant::{run, Effects, PlantSim, PlantSpec};
-use flexid::recording::{Recording, Sidecar};
+use flexid::recording::Recording;
 use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
 use std::time::Instant;
+
+#[path = "../tests/unseen/mod.rs"]
+mod unseen;
 
 const SAMPLES: usize = 1_000_000;
 const FS: f64 = 4000.0;
@@ -56,20 +59,7 @@ fn record(periodic: bool) -> Recording {
     };
     let mut sim = PlantSim::new(&spec, FS, 4, 7).expect("a stable plant");
     let pos: Vec<f64> = run(&mut sim, &torque).map(|s| s.position_rad).collect();
-    Recording {
-        time_s: (0..torque.len()).map(|k| k as f64 / FS).collect(),
-        torque_cmd_nm: torque,
-        position_rad: Some(pos),
-        velocity_rad_s: None,
-        acceleration_rad_s2: None,
-        torque_actual_nm: None,
-        sample_rate_hz: FS,
-        sidecar: Sidecar {
-            sample_rate_hz: Some(FS),
-            excitation: info,
-            ..Sidecar::default()
-        },
-    }
+    unseen::position_recording(FS, torque, pos, info)
 }
 
 fn main() {

@@ -67,7 +67,6 @@ fn the_checker_finds_what_it_must_refuse() {
 fn white_noise_two_mass_with_offset_needs_no_band() {
     use flexid::model::Chain;
     use flexid::plant::{run, Effects, PlantSim, PlantSpec};
-    use flexid::recording::{Recording, Sidecar};
     use rand::SeedableRng;
     use rand_distr::{Distribution, Normal};
 
@@ -95,19 +94,7 @@ fn white_noise_two_mass_with_offset_needs_no_band() {
     let mut sim = PlantSim::new(&spec, fs, 8, 41).unwrap();
     sim.set_initial_velocity(0.8);
     let pos: Vec<f64> = run(&mut sim, &torque).map(|s| s.position_rad).collect();
-    let rec = Recording {
-        time_s: (0..torque.len()).map(|k| k as f64 / fs).collect(),
-        torque_cmd_nm: torque,
-        position_rad: Some(pos),
-        velocity_rad_s: None,
-        acceleration_rad_s2: None,
-        torque_actual_nm: None,
-        sample_rate_hz: fs,
-        sidecar: Sidecar {
-            sample_rate_hz: Some(fs),
-            ..Sidecar::default()
-        },
-    };
+    let rec = unseen::position_recording(fs, torque, pos, None);
     for masses in [None, Some(2)] {
         let a = analyze(
             &rec,

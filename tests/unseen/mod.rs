@@ -176,20 +176,7 @@ pub fn generate(seed: u64) -> Option<Case> {
         if periodic { "multisine" } else { "white noise" },
         noise / rms
     );
-    let rec = Recording {
-        time_s: (0..torque.len()).map(|k| k as f64 / fs).collect(),
-        torque_cmd_nm: torque,
-        position_rad: Some(pos),
-        velocity_rad_s: None,
-        acceleration_rad_s2: None,
-        torque_actual_nm: None,
-        sample_rate_hz: fs,
-        sidecar: Sidecar {
-            sample_rate_hz: Some(fs),
-            excitation: info,
-            ..Sidecar::default()
-        },
-    };
+    let rec = position_recording(fs, torque, pos, info);
     Some(Case {
         rec,
         chain,
@@ -323,4 +310,28 @@ pub fn bad_outputs(a: &Analysis) -> Vec<String> {
         Err(e) => bad.push(format!("svg: not drawn: {e}")),
     }
     bad
+}
+
+/// A recording of torque command and motor position at `fs` [Hz], with the excitation's
+/// description when it is periodic.
+pub fn position_recording(
+    fs: f64,
+    torque: Vec<f64>,
+    pos: Vec<f64>,
+    info: Option<ExcitationInfo>,
+) -> Recording {
+    Recording {
+        time_s: (0..torque.len()).map(|k| k as f64 / fs).collect(),
+        torque_cmd_nm: torque,
+        position_rad: Some(pos),
+        velocity_rad_s: None,
+        acceleration_rad_s2: None,
+        torque_actual_nm: None,
+        sample_rate_hz: fs,
+        sidecar: Sidecar {
+            sample_rate_hz: Some(fs),
+            excitation: info,
+            ..Sidecar::default()
+        },
+    }
 }

@@ -317,8 +317,8 @@ struct Pairs {
     /// (anti-resonance, resonance) per pair [Hz]: the detected pairs in frequency order,
     /// then the unconfirmed ones.
     spectra: Vec<(f64, f64)>,
-    /// Pair indices: the detected pairs most prominent first, then the unconfirmed ones
-    /// most prominent first.
+    /// Pair indices: the detected pairs most prominent first (in dB), then the unconfirmed
+    /// ones most significant first (in sigma).
     by_prominence: Vec<usize>,
     /// How many of `spectra` are detected pairs.
     confirmed: usize,
@@ -388,13 +388,13 @@ impl Pairs {
             })
     }
 
-    /// The initial chain with the `k` most prominent pairs.
+    /// The initial chain with the `k` most prominent pairs (those of [`Pairs::selection`]).
     fn chain_with(&self, k: usize) -> Option<Chain> {
-        let mut sel: Vec<(f64, f64)> = self.by_prominence[..k]
+        let sel: Vec<(f64, f64)> = self
+            .selection(k)
             .iter()
-            .map(|&i| self.spectra[i])
+            .map(|(p, _)| (p.ar_hz, p.r_hz))
             .collect();
-        sel.sort_by(|a, b| a.0.total_cmp(&b.0));
         exact_chain(self.j, &sel)
     }
 }

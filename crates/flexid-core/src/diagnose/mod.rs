@@ -576,6 +576,7 @@ fn fit_linear_candidates(data: &Data, nom_lin: &LinExt, c: &mut Candidates) {
 /// not significant alone: kept only where better than the same effect without it by more
 /// than the damping's BIC price (one parameter more, counted in `added`).
 fn fit_linear_candidates_with_viscous(data: &Data, with: &LinExt, c: &mut Candidates) {
+    let pen = (data.lines() as f64).ln();
     for (fit, effect) in [
         (effects::delay::fit(data, with), Effect::TimeDelay),
         (effects::current_loop::fit(data, with), Effect::CurrentLoop),
@@ -587,7 +588,6 @@ fn fit_linear_candidates_with_viscous(data: &Data, with: &LinExt, c: &mut Candid
             f.lin.motor_b,
             f64::NAN,
         ));
-        let pen = (data.lines() as f64).ln();
         match c.fits.iter().position(|g| g.effect == effect) {
             Some(i) if c.fits[i].chi2 - f.chi2 > pen => c.fits[i] = f,
             Some(_) => {}

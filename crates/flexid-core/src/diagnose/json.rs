@@ -1,4 +1,5 @@
-//! The diagnosis as JSON (the contract: `verdict`, `gap.{before_rms_db, after_rms_db,
+//! The diagnosis as JSON (the contract: `verdict`, `effects[{effect, after_rms_db, score,
+//! params}]`, `gap.{before_rms_db, after_rms_db,
 //! bands[{lo_hz, hi_hz, excess_db}]}`, `ranking[{effect, after_rms_db, score}]`).
 
 use super::Diagnosis;
@@ -17,6 +18,10 @@ pub fn to_json(d: &Diagnosis) -> Value {
     let chain = &d.nominal.lin.chain;
     json!({
         "verdict": d.verdict,
+        "effects": d.effects.iter().map(|s| json!({
+            "effect": s.effect, "after_rms_db": num(s.after_rms_db), "score": num(s.score),
+            "params": s.fit.params.iter().map(|p| json!({"name": p.name, "value": num(p.value), "std": num(p.std)})).collect::<Vec<_>>(),
+        })).collect::<Vec<_>>(),
         "masses": d.masses,
         "gap": {
             "before_rms_db": num(g.before_rms_db),

@@ -286,10 +286,27 @@ pub struct ResidualKind {
     pub changes: Vec<LevelChange>,
 }
 
+/// One effect named by the forward selection, with the gap once it and every effect
+/// before it are modelled.
+#[derive(Debug, Clone)]
+pub struct Step {
+    pub effect: Effect,
+    /// The fit of the whole set up to this step (the chain, this effect and the ones before).
+    pub fit: EffectFit,
+    /// Systematic RMS gap with the set up to this step [dB] (see [`rms_parts`]).
+    pub after_rms_db: f64,
+    /// chi² reduction over the step before minus the BIC price of the parameters added.
+    pub score: f64,
+}
+
 /// The whole diagnosis.
 #[derive(Debug, Clone)]
 pub struct Diagnosis {
+    /// The strongest effect named (the first of [`Diagnosis::effects`]), `none` or
+    /// `unexplained`.
     pub verdict: Effect,
+    /// Every effect named, strongest first (empty for `none` and `unexplained`).
+    pub effects: Vec<Step>,
     pub masses: usize,
     pub nominal: EffectFit,
     /// Candidates ranked (best first), with scores.
@@ -433,9 +450,22 @@ pub fn diagnose(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Diagnosis,
         None => Effect::None,
     };
     let gap = gap_of(&data, &nominal, winner.as_ref());
+    let effects: Vec<Step> = winner
+        .iter()
+        .map(|w| Step {
+            effect: w.effect,
+            fit: w.clone(),
+            after_rms_db: gap.after_rms_db,
+            score: ranking
+                .iter()
+                .find(|r| r.effect == w.effect)
+                .map_or(f64::NAN, |r| r.score),
+        })
+        .collect();
     stage.lap("rank");
     Ok(Diagnosis {
         verdict,
+        effects,
         masses: n,
         nominal,
         ranking,

@@ -12,6 +12,7 @@ pub mod json;
 pub mod localise;
 pub mod lti;
 pub mod nlsim;
+pub mod noise;
 pub mod rank;
 pub mod search;
 pub mod simplex;
@@ -100,6 +101,9 @@ pub struct Level {
     pub rec: Recording,
     pub torque_rms: f64,
     pub io_delay: u32,
+    /// Periods (periodic) or segments (Welch) averaged: the line variances' degrees of
+    /// freedom (see [`noise`]).
+    pub averages: usize,
 }
 
 /// The measurements as the effect fits see them.
@@ -115,6 +119,8 @@ pub struct Data {
     pub targets: Vec<Target>,
     /// All lines per level.
     pub full_targets: Vec<Target>,
+    /// What noise alone gives as reduced chi² (mean and significance threshold).
+    pub noise: noise::NoiseChi2,
 }
 
 impl Data {
@@ -128,6 +134,10 @@ impl Data {
     }
     pub fn lines(&self) -> usize {
         self.levels.iter().map(|l| l.f.len()).sum()
+    }
+    /// Whether a model's chi² (all lines) is within the noise ([`noise`]).
+    pub fn within_noise(&self, chi2: f64) -> bool {
+        chi2 < self.noise.threshold * self.lines() as f64
     }
     pub fn f_min(&self) -> f64 {
         self.levels
@@ -236,11 +246,19 @@ pub fn prepare(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Data, Diagn
             rec: r.clone(),
             torque_rms: rms,
             io_delay: r.sidecar.io_delay_samples.unwrap_or(0),
+            averages: e.averages,
         });
     }
     let targets = levels.iter().map(|l| target(l, opts.fit_lines)).collect();
     let full_targets = levels.iter().map(|l| target(l, usize::MAX)).collect();
+    let noise = noise::reduced_chi2(
+        &levels
+            .iter()
+            .map(|l| (l.f.len(), l.averages))
+            .collect::<Vec<_>>(),
+    );
     Ok(Data {
+        noise,
         levels,
         fs,
         kind,
@@ -525,7 +543,7 @@ fn fit_nominal(data: &Data, n: usize, band: Option<[f64; 2]>) -> Result<LinExt, 
             data.kind,
             &data.full_targets,
         ));
-        let done = chi2 < rank::NOISE_CHI2 * data.lines() as f64;
+        let done = data.within_noise(chi2);
         if best.as_ref().is_none_or(|b| chi2 < b.1) {
             best = Some((lin, chi2));
         }
@@ -587,7 +605,7 @@ impl<'a> Candidates<'a> {
     fn explained(&self, data: &Data) -> bool {
         self.fits
             .iter()
-            .any(|f| f.chi2 < rank::NOISE_CHI2 * data.lines() as f64)
+            .any(|f| data.within_noise(f.chi2))
     }
 }
 
@@ -781,9 +799,9 @@ fn residual_kind(data: &Data, nominal: &EffectFit) -> ResidualKind {
     }
     ResidualKind {
         reduced_chi2: reduced,
-        within_noise: reduced < rank::NOISE_CHI2,
+        within_noise: data.within_noise(nominal.chi2),
         nonlinear,
-        linear_model_error: reduced >= rank::NOISE_CHI2 && same,
+        linear_model_error: !data.within_noise(nominal.chi2) && same,
         levels,
         changes,
     }

@@ -1,16 +1,21 @@
 //! Rank the candidates by how much of the gap each removes, penalised for the parameters it
 //! adds (BIC: with the line variances known, chi² is -2 ln L up to a constant, so each added
-//! parameter costs ln(lines)); the winner is named only when its improvement is significant.
+//! parameter costs ln(lines); chi² differences are divided by what noise alone gives per
+//! line, [`super::noise`], because the variances are estimated). A candidate is named only
+//! when its improvement is significant, its defining parameter is, and it explains the gap:
+//! it removes more than half of the chi² beyond the noise ([`EXPLAINS`]).
 
 use super::effects::{EffectFit, Param};
 use super::{Data, ResidualKind};
 use crate::diagnose::Effect;
 use serde::Serialize;
 
-/// Reduced chi² of the nominal model below which the gap is taken as noise.
-pub const NOISE_CHI2: f64 = 1.6;
-/// A winner must remove at least this fraction of the nominal chi².
-pub const MIN_REDUCTION: f64 = 0.02;
+/// What "explains" means: the fraction of the nominal model's chi² beyond the noise
+/// (`chi² - mean · lines`, [`super::noise::NoiseChi2::mean`]) that an effect (or the set of
+/// effects) removes must exceed one half. The definition of explaining the gap (most of it),
+/// not a value tuned to a benchmark: a candidate that removes less leaves more gap than it
+/// explains, and the answer is then `unexplained`, with the candidates still ranked.
+pub const EXPLAINS: f64 = 0.5;
 
 /// One candidate in the ranking.
 #[derive(Debug, Clone, Serialize)]
@@ -37,6 +42,7 @@ pub fn rank(
     residual: &ResidualKind,
 ) -> (Vec<Ranked>, Option<usize>) {
     let pen = (data.lines() as f64).ln();
+    let per_line = data.noise.mean;
     let mut r: Vec<(Ranked, Option<usize>)> = fits
         .iter()
         .enumerate()
@@ -45,7 +51,7 @@ pub fn rank(
                 Ranked {
                     effect: e.effect,
                     after_rms_db: rms_db(data, e),
-                    score: nominal.chi2 - e.chi2 - pen * e.added as f64,
+                    score: (nominal.chi2 - e.chi2) / per_line - pen * e.added as f64,
                     chi2: e.chi2,
                     added_params: e.added,
                     params: e.params.clone(),
@@ -67,16 +73,28 @@ pub fn rank(
     ));
     r.sort_by(|a, b| b.0.score.total_cmp(&a.0.score));
     // the best candidate whose improvement is significant and whose own defining parameter
-    // is significantly different from zero: significance before a name
+    // is significantly different from zero (significance before a name), and which
+    // explains the gap
     let win = r.iter().find_map(|(rk, i)| {
         let i = (*i)?;
         (!residual.within_noise
             && rk.score > 0.0
-            && fits[i].chi2 < (1.0 - MIN_REDUCTION) * nominal.chi2
-            && defining_parameter_significant(&fits[i]))
+            && defining_parameter_significant(&fits[i])
+            && explained_fraction(data, nominal.chi2, fits[i].chi2) > EXPLAINS)
         .then_some(i)
     });
     (r.into_iter().map(|x| x.0).collect(), win)
+}
+
+/// The fraction of the chi² beyond the noise (`chi2_before - mean · lines`) that a model of
+/// chi² `chi2_after` removes (1: down to the noise; may exceed 1 by chance).
+pub fn explained_fraction(data: &Data, chi2_before: f64, chi2_after: f64) -> f64 {
+    let excess = chi2_before - data.noise.mean * data.lines() as f64;
+    if excess > 0.0 {
+        (chi2_before - chi2_after) / excess
+    } else {
+        0.0
+    }
 }
 
 /// Whether an effect's defining parameter (its first: the friction torque, the gap, the

@@ -15,7 +15,10 @@ pub mod nlsim;
 pub mod noise;
 pub mod rank;
 pub mod search;
+pub mod select;
 pub mod simplex;
+#[cfg(test)]
+mod tests_support;
 
 use crate::analysis::{analyze, estimate_frf, AnalysisOptions};
 use crate::frf::{FrfKind, NonExcitedLevels};
@@ -46,7 +49,7 @@ pub enum DiagnoseError {
     NoRecordings,
     #[error("recording {0}: {1}")]
     Analysis(usize, crate::analysis::AnalysisError),
-    #[error("recording {0}: the response is an acceleration; the diagnosis needs a motor position or velocity")]
+    #[error("recording {0}: the response is neither a position, a velocity nor an acceleration")]
     Kind(usize),
     #[error("recording {0}: no nominal {1}-mass chain could be fitted")]
     NoNominal(usize, usize),
@@ -205,6 +208,19 @@ fn target(l: &Level, max_lines: usize) -> Target {
     }
 }
 
+/// An acceleration response (torque or force -> acceleration, as accelerometers give it)
+/// as a velocity response: each line divided by `j w`, its variance by `w²`. The models
+/// and the simulated candidates then compare velocities (exact per line; the sampled
+/// velocity model has no differencing, as for a measured velocity signal).
+fn acceleration_to_velocity(frf: &mut crate::frf::Frf) {
+    for ((h, v), f) in frf.h.iter_mut().zip(&mut frf.var).zip(&frf.freq_hz) {
+        let w = 2.0 * std::f64::consts::PI * f;
+        *h /= Complex64::new(0.0, w);
+        *v /= w * w;
+    }
+    frf.kind = FrfKind::Velocity;
+}
+
 /// Build [`Data`] from recordings (measured FRFs on the excited lines in band).
 pub fn prepare(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Data, DiagnoseError> {
     if recs.is_empty() {
@@ -217,7 +233,13 @@ pub fn prepare(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Data, Diagn
         if (r.sample_rate_hz - fs).abs() > 1e-9 * fs {
             return Err(DiagnoseError::Rates);
         }
-        let e = estimate_frf(r, opts.band_hz).map_err(|e| DiagnoseError::Analysis(i, e))?;
+        let mut e = estimate_frf(r, opts.band_hz).map_err(|e| DiagnoseError::Analysis(i, e))?;
+        if matches!(
+            r.preferred_motion(),
+            Some((crate::recording::MotionSignal::Acceleration, _))
+        ) {
+            acceleration_to_velocity(&mut e.frf);
+        }
         kind = e.frf.kind;
         if kind == FrfKind::Other {
             return Err(DiagnoseError::Kind(i));
@@ -329,7 +351,9 @@ pub struct Diagnosis {
     pub nominal: EffectFit,
     /// Candidates ranked (best first), with scores.
     pub ranking: Vec<rank::Ranked>,
+    /// The fit of the verdict's effect alone (the first of [`Diagnosis::effects`]).
     pub winner: Option<EffectFit>,
+    /// The gap before, and after with every effect named (the last step's model).
     pub gap: Gap,
     pub residual: ResidualKind,
     pub data: Data,
@@ -459,27 +483,45 @@ pub fn diagnose(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Diagnosis,
     keep_better_gravity(&mut fits, ground_as_gravity);
     gravity_beyond_viscous(&data, &mut fits, &viscous, &mut notes);
 
-    let (ranking, win) = rank::rank(&data, &nominal, &fits, &residual);
-    let winner = win.map(|i| fits[i].clone());
-    // no candidate named: the gap is noise (`none`) or real but unexplained
-    let verdict = match &winner {
-        Some(w) => w.effect,
+    let (ranking, first) = rank::rank(&data, &nominal, &fits, &residual);
+    // several effects at once: forward selection from the best significant candidate
+    let steps = match first {
+        Some(i) => {
+            let (steps, more) =
+                select::forward(&data, nominal.chi2, fits[i].clone(), |d, base, named| {
+                    fit_next(d, base, named, &residual, opts, n)
+                });
+            notes.extend(more);
+            steps
+        }
+        None => Vec::new(),
+    };
+    // named only when the set explains the gap; otherwise the gap is noise (`none`) or
+    // real but unexplained
+    let explained = steps
+        .last()
+        .map(|s| rank::explained_fraction(&data, nominal.chi2, s.fit.chi2));
+    let effects = match explained {
+        Some(x) if x > rank::EXPLAINS => steps,
+        Some(x) => {
+            let names: Vec<&str> = steps.iter().map(|s| s.effect.name()).collect();
+            notes.push(format!(
+                "{} significant but explains only {:.0} % of the gap beyond the noise (needs more than {:.0} %): not named",
+                names.join(" + "),
+                100.0 * x,
+                100.0 * rank::EXPLAINS
+            ));
+            Vec::new()
+        }
+        None => Vec::new(),
+    };
+    let verdict = match effects.first() {
+        Some(s) => s.effect,
         None if !residual.within_noise => Effect::Unexplained,
         None => Effect::None,
     };
-    let gap = gap_of(&data, &nominal, winner.as_ref());
-    let effects: Vec<Step> = winner
-        .iter()
-        .map(|w| Step {
-            effect: w.effect,
-            fit: w.clone(),
-            after_rms_db: gap.after_rms_db,
-            score: ranking
-                .iter()
-                .find(|r| r.effect == w.effect)
-                .map_or(f64::NAN, |r| r.score),
-        })
-        .collect();
+    let winner = effects.first().map(|s| s.fit.clone());
+    let gap = gap_of(&data, &nominal, effects.last().map(|s| &s.fit));
     stage.lap("rank");
     Ok(Diagnosis {
         verdict,
@@ -495,6 +537,69 @@ pub fn diagnose(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Diagnosis,
         seconds: t0.elapsed().as_secs_f64(),
         stage_cpu_s: stage.stages,
     })
+}
+
+/// The candidates for the next step of the forward selection on `data` (the measurement,
+/// with amplitude-dependent effects found before divided out), on top of `base` (the chain
+/// and linear extensions found so far), leaving out the effects `named`.
+fn fit_next(
+    data: &Data,
+    base: &LinExt,
+    named: &[Effect],
+    residual: &ResidualKind,
+    opts: &DiagnoseOptions,
+    n: usize,
+) -> Vec<EffectFit> {
+    let wanted = |e: Effect| !named.contains(&e);
+    let mut fits: Vec<EffectFit> = Vec::new();
+    if wanted(Effect::TimeDelay) {
+        fits.extend(effects::delay::fit(data, base));
+    }
+    if wanted(Effect::CurrentLoop) {
+        fits.extend(effects::current_loop::fit(data, base));
+    }
+    if wanted(Effect::Gravity) {
+        fits.extend(effects::gravity::fit(data, base));
+    }
+    if wanted(Effect::UnmodelledMode) {
+        let here = effects::finish_linear(data, Effect::None, base.clone(), vec![], 0);
+        let freqs = mode_start_freqs(data, &here);
+        let starts = effects::mode::starts(&base.chain, &freqs, &[]);
+        fits.extend(effects::mode::fit(data, base, &starts));
+    }
+    if residual.nonlinear || opts.force_nonlinear {
+        if wanted(Effect::CoulombFriction) {
+            fits.extend(effects::friction::fit(data, base));
+        }
+        if base.chain.masses() == n {
+            // the spring effects act on the nominal couplings
+            if wanted(Effect::Backlash) {
+                fits.extend(effects::backlash::fit(data, base));
+            }
+            if wanted(Effect::HardeningStiffness) {
+                fits.extend(effects::hardening::fit(data, base));
+            }
+        }
+    }
+    fits
+}
+
+/// Start frequencies of an extra mode from the gap of `model`: the four most significant
+/// localised bands, each at its low end, centre and high end.
+fn mode_start_freqs(data: &Data, model: &EffectFit) -> Vec<f64> {
+    let mut bands: Vec<Band> = Vec::new();
+    for (i, l) in data.levels.iter().enumerate() {
+        bands.extend(localise::bands(i, &l.f, &l.h, &l.var, &model.model[i]));
+    }
+    bands.sort_by(|a, b| (b.mean_z2 * b.lines as f64).total_cmp(&(a.mean_z2 * a.lines as f64)));
+    bands
+        .iter()
+        .take(4)
+        .flat_map(|b| {
+            let c = (b.lo_hz * b.hi_hz).sqrt();
+            [b.lo_hz.max(c / 2.0), c, b.hi_hz]
+        })
+        .collect()
 }
 
 /// The level with the highest torque RMS.
@@ -603,9 +708,7 @@ impl<'a> Candidates<'a> {
 
     /// Whether a candidate already leaves only noise.
     fn explained(&self, data: &Data) -> bool {
-        self.fits
-            .iter()
-            .any(|f| data.within_noise(f.chi2))
+        self.fits.iter().any(|f| data.within_noise(f.chi2))
     }
 }
 
@@ -690,21 +793,9 @@ fn fit_extra_mode(
         extra.push(ch);
     }
     // candidate frequencies of the extra mode: the most significant localised bands
-    let mut bands: Vec<Band> = Vec::new();
-    for (i, l) in data.levels.iter().enumerate() {
-        bands.extend(localise::bands(i, &l.f, &l.h, &l.var, &nominal.model[i]));
-    }
-    bands.sort_by(|a, b| (b.mean_z2 * b.lines as f64).total_cmp(&(a.mean_z2 * a.lines as f64)));
-    let freqs: Vec<f64> = bands
-        .iter()
-        .take(4)
-        .flat_map(|b| {
-            let c = (b.lo_hz * b.hi_hz).sqrt();
-            [b.lo_hz.max(c / 2.0), c, b.hi_hz]
-        })
-        .collect();
+    let freqs = mode_start_freqs(data, nominal);
     let mode_starts = effects::mode::starts(&nom_lin.chain, &freqs, &extra);
-    let mode_fit = effects::mode::fit(data, &mode_starts);
+    let mode_fit = effects::mode::fit(data, nom_lin, &mode_starts);
     let ground_as_gravity = mode_fit
         .as_ref()
         .and_then(|mf| effects::gravity::from_ground_body(data, &mf.lin.chain));

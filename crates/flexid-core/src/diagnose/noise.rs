@@ -124,9 +124,9 @@ mod tests {
             (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
         };
         let xs: Vec<(f64, f64)> = (0..p).map(|_| (g(), g())).collect();
-        let (mr, mi) = xs
-            .iter()
-            .fold((0.0, 0.0), |a, x| (a.0 + x.0 / p as f64, a.1 + x.1 / p as f64));
+        let (mr, mi) = xs.iter().fold((0.0, 0.0), |a, x| {
+            (a.0 + x.0 / p as f64, a.1 + x.1 / p as f64)
+        });
         let s2 = xs
             .iter()
             .map(|x| (x.0 - mr).powi(2) + (x.1 - mi).powi(2))

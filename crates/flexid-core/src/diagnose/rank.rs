@@ -34,7 +34,9 @@ fn rms_db(data: &Data, e: &EffectFit) -> f64 {
     super::rms_parts(data, &e.model).0
 }
 
-/// The ranking (best first, `none` included) and the index in `fits` of the winner.
+/// The ranking (best first, `none` included) and the index in `fits` of the best
+/// candidate that is significant (the first step of the forward selection; whether it
+/// explains the gap is decided on the selected set, [`explained_fraction`]).
 pub fn rank(
     data: &Data,
     nominal: &EffectFit,
@@ -73,15 +75,11 @@ pub fn rank(
     ));
     r.sort_by(|a, b| b.0.score.total_cmp(&a.0.score));
     // the best candidate whose improvement is significant and whose own defining parameter
-    // is significantly different from zero (significance before a name), and which
-    // explains the gap
+    // is significantly different from zero: significance before a name
     let win = r.iter().find_map(|(rk, i)| {
         let i = (*i)?;
-        (!residual.within_noise
-            && rk.score > 0.0
-            && defining_parameter_significant(&fits[i])
-            && explained_fraction(data, nominal.chi2, fits[i].chi2) > EXPLAINS)
-        .then_some(i)
+        (!residual.within_noise && rk.score > 0.0 && defining_parameter_significant(&fits[i]))
+            .then_some(i)
     });
     (r.into_iter().map(|x| x.0).collect(), win)
 }

@@ -28,7 +28,8 @@ pub fn sim_model_steady(
     nl: Nl,
     steady: Option<usize>,
 ) -> Option<Vec<Vec<Complex64>>> {
-    data.levels
+    let mut model = data
+        .levels
         .iter()
         .map(|l| {
             let u = &l.rec.torque_cmd_nm;
@@ -46,7 +47,30 @@ pub fn sim_model_steady(
             let out = simulate(lin, nl, &u[..n], data.fs, sub);
             sim_frf(&l.rec, data.band, &l.keep, &out)
         })
-        .collect()
+        .collect::<Option<Vec<Vec<Complex64>>>>()?;
+    torque_path_factor(data, lin, &mut model);
+    Some(model)
+}
+
+/// The simulation leaves out the linear filters between the command and the torque (the
+/// current loop, the fractional delay); they act before the plant on the command, so the
+/// simulated FRF is multiplied by their response, the ratio of the chain's FRF with them
+/// to the one without. Exact for a linear plant; for an amplitude-dependent one it neglects
+/// how little they change the torque's amplitude (a loop far above, a delay: none).
+fn torque_path_factor(data: &Data, lin: &LinExt, model: &mut [Vec<Complex64>]) {
+    if lin.current_loop.is_none() && lin.delay_s == 0.0 {
+        return;
+    }
+    let mut plain = lin.clone();
+    plain.current_loop = None;
+    plain.delay_s = 0.0;
+    let with = super::effects::model_on(lin, data.fs, data.kind, &data.full_targets);
+    let without = super::effects::model_on(&plain, data.fs, data.kind, &data.full_targets);
+    for ((m, a), b) in model.iter_mut().zip(&with).zip(&without) {
+        for ((m, a), b) in m.iter_mut().zip(a).zip(b) {
+            *m *= a / b;
+        }
+    }
 }
 
 fn chi2_of(data: &Data, lin: &LinExt, nl: Nl) -> f64 {

@@ -68,9 +68,10 @@ pub fn gap_svg(d: &Diagnosis) -> String {
             ph(&d.nominal.model[i]),
             true,
         ));
-        if let Some(w) = &d.winner {
+        if let Some(w) = d.effects.last().map(|s| &s.fit) {
+            let names: Vec<&str> = d.effects.iter().map(|s| s.effect.name()).collect();
             curves.push((
-                format!("with {}", w.effect),
+                format!("with {}", names.join(" + ")),
                 "#ff7f0e",
                 l.f.clone(),
                 mag(&w.model[i]),

@@ -56,9 +56,16 @@ pub fn starts(nominal: &Chain, freqs_hz: &[f64], extra: &[Chain]) -> Vec<Chain> 
     out
 }
 
-/// The extra-body fit from `starts` (chains of one more body than the nominal one).
-pub fn fit(data: &Data, starts: &[Chain]) -> Option<EffectFit> {
-    let s: Vec<LinExt> = starts.iter().map(|c| LinExt::nominal(c.clone())).collect();
+/// The extra-body fit from `starts` (chains of one more body than the nominal one), each
+/// with the linear extensions of `base` (the effects named before it, if any).
+pub fn fit(data: &Data, base: &LinExt, starts: &[Chain]) -> Option<EffectFit> {
+    let s: Vec<LinExt> = starts
+        .iter()
+        .map(|c| LinExt {
+            chain: c.clone(),
+            ..base.clone()
+        })
+        .collect();
     let (m, _r) = fit_prefitted(data, &s)?;
     let ch = &m.chain;
     let n = ch.masses();

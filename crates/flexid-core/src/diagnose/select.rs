@@ -1,0 +1,244 @@
+//! Several effects at once: forward selection. The first effect is the best significant
+//! candidate of the ranking; each next one is fitted on top of the ones before and kept
+//! while it is significant given them (its chi² reduction over the step before beats the
+//! BIC price of the parameters it adds, and its defining parameter is at least 3 sigma from
+//! zero). The set is named only when it explains the gap ([`super::rank::EXPLAINS`]).
+//!
+//! "On top of" is exact for the linear extensions (the next fit starts from the chain and
+//! extensions of the step before and keeps them): an amplitude-dependent effect found
+//! before is divided out of the measurement ([`divided_out`]): the next fit sees
+//! `H_meas · H_lin / H_sim` of the step before, whose chi² equals the chi² of the combined
+//! model `H_next · H_sim / H_lin` on the measurement (the log-complex residual and the
+//! weights are unchanged by the division).
+
+use super::effects::{model_on, EffectFit};
+use super::lti::LinExt;
+use super::{Data, Effect, Step};
+use num_complex::Complex64;
+
+/// Most effects named at once (the first and two more).
+pub const MAX_EFFECTS: usize = 3;
+
+/// The measurement with the part of `fit` that its linear model does not carry divided out
+/// (`r = H_fit / H_lin(fit.lin)` per line: the simulated amplitude-dependent effect), and
+/// `r`; `None` when `fit` is linear (nothing to divide).
+pub fn divided_out(data: &Data, fit: &EffectFit) -> Option<(Data, Vec<Vec<Complex64>>)> {
+    let lin = model_on(&fit.lin, data.fs, data.kind, &data.full_targets);
+    let r: Vec<Vec<Complex64>> = fit
+        .model
+        .iter()
+        .zip(&lin)
+        .map(|(m, l)| m.iter().zip(l).map(|(m, l)| m / l).collect())
+        .collect();
+    let linear = r
+        .iter()
+        .flatten()
+        .all(|x| (x - Complex64::new(1.0, 0.0)).norm() < 1e-9);
+    if linear {
+        return None;
+    }
+    let mut d = data.clone();
+    for (i, l) in d.levels.iter_mut().enumerate() {
+        for (k, h) in l.h.iter_mut().enumerate() {
+            let ri = r[i][k];
+            *h /= ri;
+            l.var[k] /= ri.norm_sqr();
+        }
+    }
+    // the weights |h|/sigma are unchanged; the targets' h follow the levels
+    for targets in [&mut d.targets, &mut d.full_targets] {
+        for (i, t) in targets.iter_mut().enumerate() {
+            for (j, &k) in t.idx.iter().enumerate() {
+                t.h[j] = d.levels[i].h[k];
+            }
+        }
+    }
+    Some((d, r))
+}
+
+/// A fit made on a divided-out measurement as a model of the original one: its FRF times
+/// the divided part (its chi² is already the original's).
+fn multiplied(mut fit: EffectFit, r: &[Vec<Complex64>]) -> EffectFit {
+    for (m, r) in fit.model.iter_mut().zip(r) {
+        for (m, r) in m.iter_mut().zip(r) {
+            *m *= r;
+        }
+    }
+    fit
+}
+
+/// Forward selection from `first` (the ranking's best significant candidate). `next`
+/// fits the candidates on a measurement (original or divided out) on top of the linear
+/// model given, leaving out the effects given; it returns the fits (their `added` counts
+/// only their own parameters). Returns the steps, first included, and a note per step
+/// tried.
+pub fn forward(
+    data: &Data,
+    nominal_chi2: f64,
+    first: EffectFit,
+    mut next: impl FnMut(&Data, &LinExt, &[Effect]) -> Vec<EffectFit>,
+) -> (Vec<Step>, Vec<String>) {
+    let pen = (data.lines() as f64).ln();
+    let per_line = data.noise.mean;
+    let rms = |f: &EffectFit| super::rms_parts(data, &f.model).0;
+    let mut notes = Vec::new();
+    let mut steps = vec![Step {
+        effect: first.effect,
+        after_rms_db: rms(&first),
+        score: (nominal_chi2 - first.chi2) / per_line - pen * first.added as f64,
+        fit: first,
+    }];
+    while steps.len() < MAX_EFFECTS {
+        let last = &steps.last().unwrap().fit;
+        if data.within_noise(last.chi2) {
+            break;
+        }
+        let named: Vec<Effect> = steps.iter().map(|s| s.effect).collect();
+        let fits = match divided_out(data, last) {
+            Some((d, r)) => next(&d, &last.lin, &named)
+                .into_iter()
+                .map(|f| multiplied(f, &r))
+                .collect::<Vec<_>>(),
+            None => next(data, &last.lin, &named),
+        };
+        let best = fits
+            .into_iter()
+            .filter(|f| !named.contains(&f.effect) && f.chi2.is_finite())
+            .map(|f| ((last.chi2 - f.chi2) / per_line - pen * f.added as f64, f))
+            .max_by(|a, b| a.0.total_cmp(&b.0));
+        let Some((score, fit)) = best else { break };
+        let significant = score > 0.0 && super::rank::defining_parameter_significant(&fit);
+        notes.push(format!(
+            "forward selection, step {}: best next effect {} (score {score:.1}, chi2 {:.4e} -> {:.4e}): {}",
+            steps.len() + 1,
+            fit.effect,
+            last.chi2,
+            fit.chi2,
+            if significant {
+                "significant, added"
+            } else {
+                "not significant, the selection stops"
+            }
+        ));
+        if !significant {
+            break;
+        }
+        steps.push(Step {
+            effect: fit.effect,
+            after_rms_db: rms(&fit),
+            score,
+            fit,
+        });
+    }
+    (steps, notes)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::diagnose::lti::LinExt;
+    use crate::model::Chain;
+
+    /// A 2-mass measurement generated from a linear model with a delay (the lines exact,
+    /// one percent variance), and a candidate "effect" that multiplies the model by a fixed
+    /// factor (standing in for a simulated amplitude-dependent one).
+    fn setup() -> (Data, LinExt) {
+        let chain = Chain::new(vec![1e-3, 2e-3], vec![400.0], vec![0.02]).unwrap();
+        let mut lin = LinExt::nominal(chain);
+        lin.delay_s = 2e-4;
+        crate::diagnose::tests_support::exact_data(&lin, 2000.0, &[2.0, 300.0], 120)
+    }
+
+    #[test]
+    fn dividing_out_and_multiplying_back_keeps_the_chi2() {
+        let (data, lin) = setup();
+        let base = model_on(&lin, data.fs, data.kind, &data.full_targets);
+        // a made-up amplitude-dependent part: 10 % gain and 5 degrees below 20 Hz
+        let factor = |f: f64| {
+            if f < 20.0 {
+                Complex64::from_polar(1.1, 5f64.to_radians())
+            } else {
+                Complex64::new(1.0, 0.0)
+            }
+        };
+        let model: Vec<Vec<Complex64>> = data
+            .levels
+            .iter()
+            .zip(&base)
+            .map(|(l, b)| l.f.iter().zip(b).map(|(f, b)| b * factor(*f)).collect())
+            .collect();
+        let fit = EffectFit {
+            effect: Effect::CoulombFriction,
+            params: vec![],
+            added: 2,
+            chi2: data.chi2(&model),
+            model,
+            lin: lin.clone(),
+        };
+        let (d, r) = divided_out(&data, &fit).expect("not linear");
+        // any model's chi² on the divided data equals the model times r on the original
+        let mut other = lin.clone();
+        other.delay_s = 3e-4;
+        let m = model_on(&other, d.fs, d.kind, &d.full_targets);
+        let on_divided = d.chi2(&m);
+        let back = multiplied(
+            EffectFit {
+                model: m,
+                ..fit.clone()
+            },
+            &r,
+        );
+        let on_original = data.chi2(&back.model);
+        assert!(
+            (on_divided - on_original).abs() <= 1e-9 * on_original.max(1.0),
+            "{on_divided} vs {on_original}"
+        );
+        // a linear fit has nothing to divide out
+        let lin_fit = EffectFit { model: base, ..fit };
+        assert!(divided_out(&data, &lin_fit).is_none());
+    }
+
+    #[test]
+    fn a_second_effect_is_added_only_when_it_is_significant() {
+        let (data, lin) = setup();
+        // the first step: the chain without the delay (the delay is the second effect)
+        let mut no_delay = lin.clone();
+        no_delay.delay_s = 0.0;
+        let first = crate::diagnose::effects::finish_linear(
+            &data,
+            Effect::CurrentLoop,
+            no_delay.clone(),
+            vec![],
+            1,
+        );
+        assert!(!data.within_noise(first.chi2));
+        let found_delay = crate::diagnose::effects::finish_linear(
+            &data,
+            Effect::TimeDelay,
+            lin.clone(),
+            vec![EffectFit::param("delay_s", 2e-4, 1e-6)],
+            1,
+        );
+        let (steps, notes) = forward(&data, 2.0 * first.chi2, first.clone(), |_, _, _| {
+            vec![found_delay.clone()]
+        });
+        assert_eq!(
+            steps.iter().map(|s| s.effect).collect::<Vec<_>>(),
+            [Effect::CurrentLoop, Effect::TimeDelay],
+            "{notes:?}"
+        );
+        // the same delay with an uncertainty as large as itself is not added
+        let vague = EffectFit {
+            params: vec![EffectFit::param("delay_s", 2e-4, 2e-4)],
+            ..found_delay
+        };
+        let (steps, notes) = forward(
+            &data,
+            2.0 * first.chi2,
+            first,
+            |_, _, _| vec![vague.clone()],
+        );
+        assert_eq!(steps.len(), 1, "{notes:?}");
+        assert!(notes[0].contains("not significant"), "{notes:?}");
+    }
+}

@@ -5,6 +5,7 @@
 //! [`diagnose`] takes one recording per excitation amplitude and the nominal number of
 //! bodies; plain code, no I/O. The CLI is `flexid diagnose`.
 
+pub mod acceleration;
 pub mod distortion;
 mod effect;
 pub mod effects;
@@ -208,19 +209,6 @@ fn target(l: &Level, max_lines: usize) -> Target {
     }
 }
 
-/// An acceleration response (torque or force -> acceleration, as accelerometers give it)
-/// as a velocity response: each line divided by `j w`, its variance by `w²`. The models
-/// and the simulated candidates then compare velocities (exact per line; the sampled
-/// velocity model has no differencing, as for a measured velocity signal).
-fn acceleration_to_velocity(frf: &mut crate::frf::Frf) {
-    for ((h, v), f) in frf.h.iter_mut().zip(&mut frf.var).zip(&frf.freq_hz) {
-        let w = 2.0 * std::f64::consts::PI * f;
-        *h /= Complex64::new(0.0, w);
-        *v /= w * w;
-    }
-    frf.kind = FrfKind::Velocity;
-}
-
 /// Build [`Data`] from recordings (measured FRFs on the excited lines in band).
 pub fn prepare(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Data, DiagnoseError> {
     if recs.is_empty() {
@@ -233,13 +221,7 @@ pub fn prepare(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Data, Diagn
         if (r.sample_rate_hz - fs).abs() > 1e-9 * fs {
             return Err(DiagnoseError::Rates);
         }
-        let mut e = estimate_frf(r, opts.band_hz).map_err(|e| DiagnoseError::Analysis(i, e))?;
-        if matches!(
-            r.preferred_motion(),
-            Some((crate::recording::MotionSignal::Acceleration, _))
-        ) {
-            acceleration_to_velocity(&mut e.frf);
-        }
+        let e = estimate_frf(r, opts.band_hz).map_err(|e| DiagnoseError::Analysis(i, e))?;
         kind = e.frf.kind;
         if kind == FrfKind::Other {
             return Err(DiagnoseError::Kind(i));
@@ -361,7 +343,7 @@ pub struct Diagnosis {
     pub seconds: f64,
     /// CPU time of the diagnosing thread per stage [s], in order: `prepare` (the measured
     /// FRFs), `nominal` (identification and joint fit), `residual`, each candidate fitted
-    /// (by effect name), `rank` (ranking and gap). Empty where the thread's CPU time is not
+    /// (by effect name), `select` (ranking and forward selection), `rank` (the verdict and the gap). Empty where the thread's CPU time is not
     /// available.
     pub stage_cpu_s: Vec<(&'static str, f64)>,
 }
@@ -448,7 +430,9 @@ fn nominal_start(
 pub fn diagnose(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Diagnosis, DiagnoseError> {
     let t0 = std::time::Instant::now();
     let mut stage = StageClock::start(opts.cpu_clock);
-    let data = prepare(recs, opts)?;
+    // an acceleration response is diagnosed as the position it integrates to
+    let recs: Vec<Recording> = recs.iter().map(acceleration::as_position).collect();
+    let data = prepare(&recs, opts)?;
     stage.lap("prepare");
     let n = opts.masses.max(1);
     let nom_lin = fit_nominal(&data, n, opts.band_hz)?;
@@ -484,18 +468,26 @@ pub fn diagnose(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Diagnosis,
     gravity_beyond_viscous(&data, &mut fits, &viscous, &mut notes);
 
     let (ranking, first) = rank::rank(&data, &nominal, &fits, &residual);
-    // several effects at once: forward selection from the best significant candidate
+    // several effects at once: forward selection from the best significant candidate,
+    // over the candidates that improved on the nominal model significantly on their own
+    // (a screen: a candidate that explains nothing alone is not tried on top of another)
+    let marginal: Vec<Effect> = ranking
+        .iter()
+        .filter(|r| r.score > 0.0)
+        .map(|r| r.effect)
+        .collect();
     let steps = match first {
         Some(i) => {
             let (steps, more) =
                 select::forward(&data, nominal.chi2, fits[i].clone(), |d, base, named| {
-                    fit_next(d, base, named, &residual, opts, n)
+                    fit_next(d, base, named, &marginal, opts, n)
                 });
             notes.extend(more);
             steps
         }
         None => Vec::new(),
     };
+    stage.lap("select");
     // named only when the set explains the gap; otherwise the gap is noise (`none`) or
     // real but unexplained
     let explained = steps
@@ -541,16 +533,17 @@ pub fn diagnose(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Diagnosis,
 
 /// The candidates for the next step of the forward selection on `data` (the measurement,
 /// with amplitude-dependent effects found before divided out), on top of `base` (the chain
-/// and linear extensions found so far), leaving out the effects `named`.
+/// and linear extensions found so far): those in `screened` (all with `--all-effects`)
+/// but not `named`.
 fn fit_next(
     data: &Data,
     base: &LinExt,
     named: &[Effect],
-    residual: &ResidualKind,
+    screened: &[Effect],
     opts: &DiagnoseOptions,
     n: usize,
 ) -> Vec<EffectFit> {
-    let wanted = |e: Effect| !named.contains(&e);
+    let wanted = |e: Effect| !named.contains(&e) && (opts.force_nonlinear || screened.contains(&e));
     let mut fits: Vec<EffectFit> = Vec::new();
     if wanted(Effect::TimeDelay) {
         fits.extend(effects::delay::fit(data, base));
@@ -567,18 +560,16 @@ fn fit_next(
         let starts = effects::mode::starts(&base.chain, &freqs, &[]);
         fits.extend(effects::mode::fit(data, base, &starts));
     }
-    if residual.nonlinear || opts.force_nonlinear {
-        if wanted(Effect::CoulombFriction) {
-            fits.extend(effects::friction::fit(data, base));
+    if wanted(Effect::CoulombFriction) {
+        fits.extend(effects::friction::fit(data, base));
+    }
+    if base.chain.masses() == n {
+        // the spring effects act on the nominal couplings
+        if wanted(Effect::Backlash) {
+            fits.extend(effects::backlash::fit(data, base));
         }
-        if base.chain.masses() == n {
-            // the spring effects act on the nominal couplings
-            if wanted(Effect::Backlash) {
-                fits.extend(effects::backlash::fit(data, base));
-            }
-            if wanted(Effect::HardeningStiffness) {
-                fits.extend(effects::hardening::fit(data, base));
-            }
+        if wanted(Effect::HardeningStiffness) {
+            fits.extend(effects::hardening::fit(data, base));
         }
     }
     fits

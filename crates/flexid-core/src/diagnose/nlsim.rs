@@ -308,10 +308,8 @@ pub fn sim_frf(
     }
     match rec.preferred_motion()?.0 {
         MotionSignal::Position => r.position_rad = Some(out.pos[..n].to_vec()),
-        // an acceleration is compared as a velocity (see `prepare`)
-        MotionSignal::Velocity | MotionSignal::Acceleration => {
-            r.velocity_rad_s = Some(out.vel[..n].to_vec())
-        }
+        MotionSignal::Velocity => r.velocity_rad_s = Some(out.vel[..n].to_vec()),
+        MotionSignal::Acceleration => return None,
     }
     let e = estimate_frf(&r, band).ok()?;
     keep.iter().map(|&i| e.frf.h.get(i).copied()).collect()

@@ -17,6 +17,9 @@ pub struct LevelDistortion {
     pub detection_excess_db: Option<f64>,
     /// Fraction of the non-excited lines more than 10 dB above their noise.
     pub detection_lines_hit: Option<f64>,
+    /// Where the distortion is [Hz]: the lowest and highest non-excited line more than
+    /// 10 dB above its noise (`None` without such a line).
+    pub distortion_hz: Option<[f64; 2]>,
 }
 
 /// Change of the FRF between two recordings (amplitude levels).
@@ -37,7 +40,7 @@ pub fn level_distortion(
     torque_rms: f64,
     ne: Option<&NonExcitedLevels>,
 ) -> LevelDistortion {
-    let (mut ex, mut hit) = (None, None);
+    let (mut ex, mut hit, mut at) = (None, None, None);
     if let Some(ne) = ne {
         let pairs: Vec<(f64, f64)> = ne
             .mean_power_y
@@ -53,6 +56,16 @@ pub fn level_distortion(
             hit = Some(
                 pairs.iter().filter(|(p, v)| *p > 10.0 * v).count() as f64 / pairs.len() as f64,
             );
+            let hot: Vec<f64> = ne
+                .freq_hz
+                .iter()
+                .zip(ne.mean_power_y.iter().zip(&ne.noise_var_y))
+                .filter(|(_, (p, v))| v.is_finite() && **v > 0.0 && **p > 10.0 * **v)
+                .map(|(f, _)| *f)
+                .collect();
+            if let (Some(lo), Some(hi)) = (hot.first(), hot.last()) {
+                at = Some([*lo, *hi]);
+            }
         }
     }
     LevelDistortion {
@@ -60,6 +73,7 @@ pub fn level_distortion(
         torque_rms_nm: torque_rms,
         detection_excess_db: ex,
         detection_lines_hit: hit,
+        distortion_hz: at,
     }
 }
 

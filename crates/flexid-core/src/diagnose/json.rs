@@ -35,6 +35,8 @@ pub fn to_json(d: &Diagnosis) -> Value {
             "noise_rms_db": num(g.noise_rms_db),
             "bands": g.bands.iter().map(|(b, after)| json!({
                 "level": b.level, "lo_hz": b.lo_hz, "hi_hz": b.hi_hz, "lines": b.lines,
+                "peak_hz": num(b.peak_hz), "core_lo_hz": num(b.core_lo_hz), "core_hi_hz": num(b.core_hi_hz),
+                "shape": b.shape,
                 "excess_db": num(b.excess_db), "excess_deg": num(b.excess_deg),
                 "mean_z2": num(b.mean_z2),
                 "magnitude_significant": b.magnitude_significant,
@@ -57,6 +59,7 @@ pub fn to_json(d: &Diagnosis) -> Value {
                 "level": l.level, "torque_rms_nm": num(l.torque_rms_nm),
                 "detection_excess_db": l.detection_excess_db.map(num),
                 "detection_lines_hit": l.detection_lines_hit.map(num),
+                "distortion_hz": l.distortion_hz.map(|w| [num(w[0]), num(w[1])]),
             })).collect::<Vec<_>>(),
             "level_changes": d.residual.changes.iter().map(|c| json!({
                 "a": c.a, "b": c.b, "mean_z2": num(c.mean_z2), "rms_db": num(c.rms_db), "significant": c.significant,

@@ -580,7 +580,14 @@ fn fit_next(
 fn mode_start_freqs(data: &Data, model: &EffectFit) -> Vec<f64> {
     let mut bands: Vec<Band> = Vec::new();
     for (i, l) in data.levels.iter().enumerate() {
-        bands.extend(localise::bands(i, &l.f, &l.h, &l.var, &model.model[i]));
+        bands.extend(localise::bands(
+            i,
+            &l.f,
+            &l.h,
+            &l.var,
+            &model.model[i],
+            l.averages,
+        ));
     }
     bands.sort_by(|a, b| (b.mean_z2 * b.lines as f64).total_cmp(&(a.mean_z2 * a.lines as f64)));
     bands
@@ -930,7 +937,7 @@ fn gap_of(data: &Data, nominal: &EffectFit, winner: Option<&EffectFit>) -> Gap {
     let noise = localise::DB_PER_NEPER * (noise / data.lines().max(1) as f64).sqrt();
     let mut bands = Vec::new();
     for (i, l) in data.levels.iter().enumerate() {
-        for band in localise::bands(i, &l.f, &l.h, &l.var, &nominal.model[i]) {
+        for band in localise::bands(i, &l.f, &l.h, &l.var, &nominal.model[i], l.averages) {
             let idx: Vec<usize> = (0..l.f.len())
                 .filter(|&k| l.f[k] >= band.lo_hz && l.f[k] <= band.hi_hz)
                 .collect();

@@ -54,6 +54,13 @@ pub fn line_mean(averages: usize) -> f64 {
     }
 }
 
+/// The value a line's `z²` exceeds with probability `p` under noise alone: the inverse of
+/// the tail of `F(2, d)`, `d/2 (p^(-2/d) - 1)` (`-ln p` for many averages).
+pub fn quantile(averages: usize, p: f64) -> f64 {
+    let d = dof(averages);
+    d / 2.0 * (p.powf(-2.0 / d) - 1.0)
+}
+
 /// Mean and variance of `F(2, d)` truncated at its `1 - 1/lines` quantile, by the
 /// integrals of the tail: `E[min(X, q)] = int_0^q S`, `E[min(X, q)²] = int_0^q 2 x S`.
 fn truncated_moments(averages: usize, lines: usize) -> (f64, f64) {

@@ -1,6 +1,8 @@
-//! The diagnosis plot: measured FRF (each level), the nominal model, the model with the
-//! winning effect, and the localised bands shaded; magnitude over phase, log frequency.
-//! Plain SVG text.
+//! The diagnosis plot: measured FRF (each level) with its two-sigma uncertainty band, the
+//! nominal model, the model with the named effects, and the localised bands: the core of
+//! each (where the error is at least half its largest) shaded, the rest of the significant
+//! range faint, each labelled with its excess, the gap after and what explains it;
+//! magnitude over phase, log frequency. Plain SVG text.
 
 use flexid_core::diagnose::Diagnosis;
 use std::fmt::Write;
@@ -30,6 +32,45 @@ fn unwrap(p: &mut [f64]) {
             p[i] += 360.0;
         }
     }
+}
+
+/// Text safe inside an SVG element.
+fn xml(t: &str) -> String {
+    t.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+}
+
+/// The bands to draw, one per distinct core (the level with the largest excess where the
+/// cores of several levels overlap), each with its label: the excess, the gap after, and
+/// what explains it (the named effects, or the band's shape when nothing does).
+fn labelled_bands(d: &Diagnosis) -> Vec<(flexid_core::diagnose::localise::Band, String)> {
+    let mut bands: Vec<&(flexid_core::diagnose::localise::Band, f64)> =
+        d.gap.bands.iter().collect();
+    bands.sort_by(|a, b| b.0.excess_db.total_cmp(&a.0.excess_db));
+    let mut kept: Vec<(flexid_core::diagnose::localise::Band, String)> = Vec::new();
+    for (b, after) in bands {
+        if kept
+            .iter()
+            .any(|(k, _)| b.core_lo_hz <= k.core_hi_hz && k.core_lo_hz <= b.core_hi_hz)
+        {
+            continue;
+        }
+        let why = if d.verdict == flexid_core::diagnose::Effect::None {
+            format!("({}; the gap overall is within the noise)", b.shape.words())
+        } else if d.effects.is_empty() {
+            format!("unexplained: {}", b.shape.words())
+        } else {
+            let names: Vec<&str> = d.effects.iter().map(|e| e.effect.name()).collect();
+            format!("-> {after:.2} dB with {}", names.join(" + "))
+        };
+        kept.push((
+            b.clone(),
+            format!("{:.2} dB at {:.3} Hz {why}", b.excess_db, b.peak_hz),
+        ));
+    }
+    kept.sort_by(|a, b| a.0.core_lo_hz.total_cmp(&b.0.core_lo_hz));
+    kept
 }
 
 /// The SVG text of the diagnosis plot.
@@ -109,21 +150,47 @@ pub fn gap_svg(d: &Diagnosis) -> String {
         r#"<svg xmlns="http://www.w3.org/2000/svg" width="{W}" height="{total_h}" font-family="sans-serif" font-size="12">"#
     );
     let _ = writeln!(s, r#"<rect width="100%" height="100%" fill="white"/>"#);
+    let named: Vec<&str> = d.effects.iter().map(|e| e.effect.name()).collect();
     let _ = writeln!(
         s,
-        r#"<text x="{L}" y="14">flexid diagnose: verdict {}, gap {:.3} dB -> {:.3} dB</text>"#,
-        d.verdict, d.gap.before_rms_db, d.gap.after_rms_db
+        r#"<text x="{L}" y="14">flexid diagnose: verdict {}{}, gap {:.3} dB -> {:.3} dB (noise {:.3} dB)</text>"#,
+        d.verdict,
+        if named.len() > 1 {
+            format!(" (effects {})", named.join(" + "))
+        } else {
+            String::new()
+        },
+        d.gap.before_rms_db,
+        d.gap.after_rms_db,
+        d.gap.noise_rms_db
     );
+    let bands = labelled_bands(d);
     for (top, label) in [(20.0, "magnitude [dB]"), (20.0 + H, "phase [deg]")] {
-        for (b, _) in &d.gap.bands {
+        for (b, _) in &bands {
             let (xa, xb) = (x(b.lo_hz), x(b.hi_hz).max(x(b.lo_hz) + 2.0));
+            let (ca, cb) = (x(b.core_lo_hz), x(b.core_hi_hz).max(x(b.core_lo_hz) + 3.0));
             let _ = writeln!(
                 s,
-                r##"<rect x="{xa:.1}" y="{:.1}" width="{:.1}" height="{:.1}" fill="#ffcc00" fill-opacity="0.25"/>"##,
+                r##"<rect x="{xa:.1}" y="{:.1}" width="{:.1}" height="{:.1}" fill="#ffcc00" fill-opacity="0.08"/><rect x="{ca:.1}" y="{:.1}" width="{:.1}" height="{:.1}" fill="#ffcc00" fill-opacity="0.35"/>"##,
                 top + 20.0,
                 xb - xa,
+                H - 40.0,
+                top + 20.0,
+                cb - ca,
                 H - 40.0
             );
+        }
+        if top < H {
+            // the labels, staggered so that neighbours do not overwrite each other
+            for (k, (b, text)) in bands.iter().enumerate() {
+                let _ = writeln!(
+                    s,
+                    r#"<text x="{:.1}" y="{:.1}" font-size="11">{}</text>"#,
+                    x(b.core_lo_hz),
+                    top + 32.0 + 13.0 * (k % 4) as f64,
+                    xml(text)
+                );
+            }
         }
         let _ = writeln!(
             s,
@@ -167,6 +234,31 @@ pub fn gap_svg(d: &Diagnosis) -> String {
             top + H - 20.0,
             lo
         );
+    }
+    // the measurement's two-sigma band (magnitude): sigma of 20 log10|H| is
+    // 8.69 sqrt(var/2)/|H|
+    for (i, l) in data.levels.iter().enumerate() {
+        let band = |sign: f64| -> Vec<(f64, f64)> {
+            l.f.iter()
+                .zip(&l.h)
+                .zip(&l.var)
+                .map(|((f, h), v)| {
+                    let db = 20.0 * h.norm().log10();
+                    let sig = 8.685889638065035 * (v / 2.0).sqrt() / h.norm();
+                    (x(*f), ym(db + sign * 2.0 * sig.min(20.0), 20.0))
+                })
+                .collect()
+        };
+        let mut pts = band(1.0);
+        pts.extend(band(-1.0).into_iter().rev());
+        if pts.iter().all(|(a, b)| a.is_finite() && b.is_finite()) && !pts.is_empty() {
+            let _ = writeln!(
+                s,
+                r#"<path d="{}Z" fill="{}" fill-opacity="0.15" stroke="none"><title>measured, level {i}: two-sigma band</title></path>"#,
+                path(&pts),
+                COLORS[i % 4]
+            );
+        }
     }
     for (name, color, f, m, p, dashed) in &curves {
         let dash = if *dashed {
@@ -215,7 +307,7 @@ pub fn gap_svg(d: &Diagnosis) -> String {
     }
     let _ = writeln!(
         s,
-        r##"<rect x="{:.1}" y="{:.1}" width="30" height="10" fill="#ffcc00" fill-opacity="0.25"/><text x="{:.1}" y="{:.1}">significant bands (nominal model)</text>"##,
+        r##"<rect x="{:.1}" y="{:.1}" width="30" height="10" fill="#ffcc00" fill-opacity="0.35"/><text x="{:.1}" y="{:.1}">where the nominal model misses (core shaded, significant range faint)</text>"##,
         W / 2.0,
         2.0 * H + 45.0,
         W / 2.0 + 36.0,

@@ -14,11 +14,45 @@ pub fn render(d: &Diagnosis) -> String {
         d.data.lines()
     );
     let _ = writeln!(s, "\nVERDICT: {}", d.verdict);
+    if d.effects.len() > 1 {
+        let _ = writeln!(s, "effects (forward selection, strongest first):");
+        for st in &d.effects {
+            let _ = writeln!(
+                s,
+                "  + {:20} gap after {:.3} dB (score {:.1})",
+                st.effect, st.after_rms_db, st.score
+            );
+        }
+    }
     if d.verdict == flexid_core::diagnose::Effect::Unexplained {
         let _ = writeln!(
             s,
-            "  the gap is larger than the noise, but no candidate explains it significantly: look at the bands below and the candidates' results; the cause may be outside the library"
+            "  the gap is larger than the noise, but no candidate explains it: the cause may be outside the library. Evidence:"
         );
+        for (b, _) in &d.gap.bands {
+            let _ = writeln!(
+                s,
+                "  - level {}: {} around {:.2} Hz (core {:.2} - {:.2} Hz), {:.2} dB / {:.1} deg",
+                b.level,
+                b.shape.words(),
+                b.peak_hz,
+                b.core_lo_hz,
+                b.core_hi_hz,
+                b.excess_db,
+                b.excess_deg
+            );
+        }
+        for l in &d.residual.levels {
+            if let (Some(e), Some(w)) = (l.detection_excess_db, l.distortion_hz) {
+                if e > 6.0 {
+                    let _ = writeln!(
+                        s,
+                        "  - level {}: nonlinear distortion at the non-excited lines, {e:+.1} dB over noise, strongest between {:.2} and {:.2} Hz",
+                        l.level, w[0], w[1]
+                    );
+                }
+            }
+        }
     }
     let _ = writeln!(
         s,
@@ -95,11 +129,14 @@ pub fn render(d: &Diagnosis) -> String {
     for (b, after) in &g.bands {
         let _ = writeln!(
             s,
-            "  level {} {:9.3} - {:9.3} Hz ({:4} lines): {:.2} dB, {:.1} deg [{}{}], mean z2 {:.1}; after {:.2} dB",
+            "  level {} {:9.3} - {:9.3} Hz ({:4} lines; core {:.3} - {:.3} Hz, {}): {:.2} dB, {:.1} deg [{}{}], mean z2 {:.1}; after {:.2} dB",
             b.level,
             b.lo_hz,
             b.hi_hz,
             b.lines,
+            b.core_lo_hz,
+            b.core_hi_hz,
+            b.shape.words(),
             b.excess_db,
             b.excess_deg,
             if b.magnitude_significant { "mag " } else { "" },

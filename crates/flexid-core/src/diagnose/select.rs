@@ -2,7 +2,10 @@
 //! candidate of the ranking; each next one is fitted on top of the ones before and kept
 //! while it is significant given them (its chi² reduction over the step before beats the
 //! BIC price of the parameters it adds, and its defining parameter is at least 3 sigma from
-//! zero). The set is named only when it explains the gap ([`super::rank::EXPLAINS`]).
+//! zero) and explains the gap that remains (more than half of the chi² beyond the noise
+//! left after the step before, [`super::rank::EXPLAINS`]: with clean data any imperfection
+//! of the first effect's model is "significant", and a further candidate that takes a
+//! little of it is not a further effect). The set is named only when it explains the gap.
 //!
 //! "On top of" is exact for the linear extensions (the next fit starts from the chain and
 //! extensions of the step before and keeps them): an amplitude-dependent effect found
@@ -108,19 +111,22 @@ pub fn forward(
             .max_by(|a, b| a.0.total_cmp(&b.0));
         let Some((score, fit)) = best else { break };
         let significant = score > 0.0 && super::rank::defining_parameter_significant(&fit);
+        let explains = super::rank::explained_fraction(data, last.chi2, fit.chi2);
+        let added = significant && explains > super::rank::EXPLAINS;
         notes.push(format!(
-            "forward selection, step {}: best next effect {} (score {score:.1}, chi2 {:.4e} -> {:.4e}): {}",
+            "forward selection, step {}: best next effect {} (score {score:.1}, chi2 {:.4e} -> {:.4e}, {:.0} % of the remaining gap): {}",
             steps.len() + 1,
             fit.effect,
             last.chi2,
             fit.chi2,
-            if significant {
-                "significant, added"
-            } else {
-                "not significant, the selection stops"
+            100.0 * explains,
+            match (significant, added) {
+                (_, true) => "significant, explains the remaining gap: added",
+                (true, false) => "significant but explains too little of the remaining gap: the selection stops",
+                _ => "not significant: the selection stops",
             }
         ));
-        if !significant {
+        if !added {
             break;
         }
         steps.push(Step {

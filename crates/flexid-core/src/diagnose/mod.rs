@@ -435,8 +435,9 @@ pub fn diagnose(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Diagnosis,
     let data = prepare(&recs, opts)?;
     stage.lap("prepare");
     let n = opts.masses.max(1);
-    let nom_lin = fit_nominal(&data, n, opts.band_hz)?;
-    let viscous = effects::viscous::nominal_with_viscous(&data, &nom_lin);
+    let mut idents = Vec::new();
+    let nom_lin = fit_nominal(&data, n, opts.band_hz, &mut idents)?;
+    let viscous = effects::viscous::nominal_with_viscous(&data, &nom_lin, &idents);
     let nom_lin = viscous.nominal.clone();
     let nominal = effects::finish_linear(&data, Effect::None, nom_lin.clone(), vec![], 0);
     stage.lap("nominal");
@@ -616,7 +617,12 @@ fn top_level(data: &Data) -> usize {
 /// own one fail, e.g. a spring hardened far beyond its small-signal value); the joint fit
 /// with the lowest chi² over all levels is the nominal model. When no level gives `n`
 /// bodies: one body less, plus one appended near the top of the band.
-fn fit_nominal(data: &Data, n: usize, band: Option<[f64; 2]>) -> Result<LinExt, DiagnoseError> {
+fn fit_nominal(
+    data: &Data,
+    n: usize,
+    band: Option<[f64; 2]>,
+    starts: &mut Vec<crate::model::Chain>,
+) -> Result<LinExt, DiagnoseError> {
     let mut order: Vec<usize> = (0..data.levels.len()).collect();
     order.sort_by(|&a, &b| {
         data.levels[b]
@@ -639,6 +645,7 @@ fn fit_nominal(data: &Data, n: usize, band: Option<[f64; 2]>) -> Result<LinExt, 
         let Some(start) = nominal_start(&data.levels[i].rec, n, band) else {
             continue;
         };
+        starts.push(start.clone());
         let lin = fit_joint(start);
         let chi2 = data.chi2(&effects::model_on(
             &lin,

@@ -31,18 +31,28 @@ pub struct ViscousNominal {
 }
 
 /// The nominal model with or without viscous friction to the ground, and a note saying
-/// which and why.
-pub fn nominal_with_viscous(data: &Data, nominal: &LinExt) -> ViscousNominal {
+/// which and why. Started from the nominal chain and from the identifications `idents`
+/// (the chains the nominal fit started from): a nominal chain fitted without the damper
+/// can have bent into a basin (a soft extra pair mimicking the ground damping) that the
+/// damper alone does not leave.
+pub fn nominal_with_viscous(
+    data: &Data,
+    nominal: &LinExt,
+    idents: &[crate::model::Chain],
+) -> ViscousNominal {
     let jt = nominal.chain.total_inertia();
     let w0 = 2.0 * std::f64::consts::PI * data.f_min().max(1e-3);
-    let starts: Vec<LinExt> = [0.003, 0.03, 0.3, 3.0]
-        .iter()
-        .map(|r| {
-            let mut s = nominal.clone();
+    let mut starts: Vec<LinExt> = Vec::new();
+    for base in std::iter::once(nominal.clone()).chain(idents.iter().map(|c| LinExt {
+        chain: c.clone(),
+        ..nominal.clone()
+    })) {
+        for r in [0.003, 0.03, 0.3, 3.0] {
+            let mut s = base.clone();
             s.motor_b = r * jt * w0;
-            s
-        })
-        .collect();
+            starts.push(s);
+        }
+    }
     let Some((m, r)) = fit_best_start(data, Lin::Viscous, &starts, 40, 2) else {
         return ViscousNominal {
             nominal: nominal.clone(),

@@ -454,8 +454,19 @@ pub fn diagnose(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Diagnosis,
         // damping counted as one more parameter
         fit_linear_candidates_with_viscous(&data, with, &mut candidates);
     }
-    let ground_as_gravity =
-        fit_extra_mode(&data, &nominal, &nom_lin, n, opts.band_hz, &mut candidates);
+    let with_viscous = match (viscous.significant, &viscous.with_viscous) {
+        (false, Some((with, _))) => Some(with),
+        _ => None,
+    };
+    let ground_as_gravity = fit_extra_mode(
+        &data,
+        &nominal,
+        &nom_lin,
+        with_viscous,
+        n,
+        opts.band_hz,
+        &mut candidates,
+    );
     fit_amplitude_candidates(
         &data,
         &nom_lin,
@@ -577,7 +588,9 @@ fn fit_next(
 }
 
 /// Start frequencies of an extra mode from the gap of `model`: the four most significant
-/// localised bands, each at its low end, centre and high end.
+/// localised bands, each at its peak and the two ends of its core (where the error is at
+/// least half its largest: a band can span the whole spectrum when the data are clean, its
+/// core is where the missing pair is).
 fn mode_start_freqs(data: &Data, model: &EffectFit) -> Vec<f64> {
     let mut bands: Vec<Band> = Vec::new();
     for (i, l) in data.levels.iter().enumerate() {
@@ -594,10 +607,7 @@ fn mode_start_freqs(data: &Data, model: &EffectFit) -> Vec<f64> {
     bands
         .iter()
         .take(4)
-        .flat_map(|b| {
-            let c = (b.lo_hz * b.hi_hz).sqrt();
-            [b.lo_hz.max(c / 2.0), c, b.hi_hz]
-        })
+        .flat_map(|b| [b.peak_hz, b.core_lo_hz, b.core_hi_hz])
         .collect()
 }
 
@@ -782,13 +792,16 @@ fn gravity_beyond_viscous(
 }
 
 /// The extra body (an unmodelled mode), started from the identification with one body more
-/// and from the most significant localised bands of the nominal model's gap. Returns the
-/// gravity refit when the best "extra body" is far heavier than the rest of the axis:
-/// that is the ground, its spring a restoring stiffness on the last body.
+/// and from the most significant localised bands of the nominal model's gap; also on the
+/// nominal chain with the viscous friction that was not significant alone (`with_viscous`),
+/// kept where that pays the damping's BIC price. Returns the gravity refit when the best
+/// "extra body" is far heavier than the rest of the axis: that is the ground, its spring a
+/// restoring stiffness on the last body.
 fn fit_extra_mode(
     data: &Data,
     nominal: &EffectFit,
     nom_lin: &LinExt,
+    with_viscous: Option<&LinExt>,
     n: usize,
     band: Option<[f64; 2]>,
     c: &mut Candidates,
@@ -800,7 +813,24 @@ fn fit_extra_mode(
     // candidate frequencies of the extra mode: the most significant localised bands
     let freqs = mode_start_freqs(data, nominal);
     let mode_starts = effects::mode::starts(&nom_lin.chain, &freqs, &extra);
-    let mode_fit = effects::mode::fit(data, nom_lin, &mode_starts);
+    let mut mode_fit = effects::mode::fit(data, nom_lin, &mode_starts);
+    if let Some(with) = with_viscous {
+        let here = effects::finish_linear(data, Effect::None, with.clone(), vec![], 0);
+        let freqs = mode_start_freqs(data, &here);
+        let starts = effects::mode::starts(&with.chain, &freqs, &extra);
+        if let Some(mut f) = effects::mode::fit(data, with, &starts) {
+            let pen = (data.lines() as f64).ln();
+            if mode_fit.as_ref().is_none_or(|m| m.chi2 - f.chi2 > pen) {
+                f.added += 1;
+                f.params.push(effects::EffectFit::param(
+                    "viscous_nms_per_rad",
+                    f.lin.motor_b,
+                    f64::NAN,
+                ));
+                mode_fit = Some(f);
+            }
+        }
+    }
     let ground_as_gravity = mode_fit
         .as_ref()
         .and_then(|mf| effects::gravity::from_ground_body(data, &mf.lin.chain));

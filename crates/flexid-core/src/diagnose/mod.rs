@@ -818,7 +818,7 @@ fn fit_extra_mode(
         let here = effects::finish_linear(data, Effect::None, with.clone(), vec![], 0);
         let freqs = mode_start_freqs(data, &here);
         let starts = effects::mode::starts(&with.chain, &freqs, &extra);
-        if let Some(mut f) = effects::mode::fit(data, with, &starts) {
+        if let Some(mut f) = effects::mode::fit_as(data, with, &starts, Lin::ModeViscous) {
             let pen = (data.lines() as f64).ln();
             if mode_fit.as_ref().is_none_or(|m| m.chi2 - f.chi2 > pen) {
                 f.added += 1;

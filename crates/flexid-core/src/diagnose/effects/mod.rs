@@ -69,6 +69,9 @@ pub enum Lin {
     Mode,
     /// Viscous damping motor-ground.
     Viscous,
+    /// One more body and the viscous damping motor-ground together (an extra mode on a
+    /// nominal chain whose damper was not significant alone).
+    ModeViscous,
 }
 
 impl Lin {
@@ -76,6 +79,7 @@ impl Lin {
         match self {
             Lin::None | Lin::Mode => 0,
             Lin::Loop2 | Lin::Gravity => 2,
+            Lin::ModeViscous => 1,
             _ => 1,
         }
     }
@@ -123,7 +127,7 @@ pub fn theta(m: &LinExt, k: Lin) -> Vec<f64> {
             t.push(m.ground_k.max(fs_guard).ln());
             t.push(m.motor_b.max(fs_guard).ln());
         }
-        Lin::Viscous => t.push(m.motor_b.max(fs_guard).ln()),
+        Lin::Viscous | Lin::ModeViscous => t.push(m.motor_b.max(fs_guard).ln()),
     }
     t
 }
@@ -157,7 +161,7 @@ pub fn build_on(base: &LinExt, t: &[f64], n: usize, k: Lin) -> Option<LinExt> {
             m.ground_k = e[0].exp();
             m.motor_b = e[1].exp();
         }
-        Lin::Viscous => m.motor_b = e[0].exp(),
+        Lin::Viscous | Lin::ModeViscous => m.motor_b = e[0].exp(),
     }
     if e.iter().any(|v| !v.is_finite() || v.abs() > 60.0) {
         return None;

@@ -59,6 +59,12 @@ pub fn starts(nominal: &Chain, freqs_hz: &[f64], extra: &[Chain]) -> Vec<Chain> 
 /// The extra-body fit from `starts` (chains of one more body than the nominal one), each
 /// with the linear extensions of `base` (the effects named before it, if any).
 pub fn fit(data: &Data, base: &LinExt, starts: &[Chain]) -> Option<EffectFit> {
+    fit_as(data, base, starts, Lin::Mode)
+}
+
+/// [`fit`] with the joint refinement over `joint` ([`Lin::Mode`], or [`Lin::ModeViscous`]
+/// to free the motor-ground damper too).
+pub fn fit_as(data: &Data, base: &LinExt, starts: &[Chain], joint: Lin) -> Option<EffectFit> {
     let s: Vec<LinExt> = starts
         .iter()
         .map(|c| LinExt {
@@ -66,7 +72,7 @@ pub fn fit(data: &Data, base: &LinExt, starts: &[Chain]) -> Option<EffectFit> {
             ..base.clone()
         })
         .collect();
-    let (m, _r) = fit_prefitted(data, &s)?;
+    let (m, _r) = fit_prefitted(data, &s, joint)?;
     let ch = &m.chain;
     let n = ch.masses();
     let mut p = vec![
@@ -103,7 +109,7 @@ pub fn fit(data: &Data, base: &LinExt, starts: &[Chain]) -> Option<EffectFit> {
 
 /// Each start's appended body prefitted ([`prefit_body`]); the [`JOINT_STARTS`] best of
 /// them refined jointly with the chain; the best joint fit.
-fn fit_prefitted(data: &Data, starts: &[LinExt]) -> Option<(LinExt, LmResult)> {
+fn fit_prefitted(data: &Data, starts: &[LinExt], joint: Lin) -> Option<(LinExt, LmResult)> {
     let mut scored: Vec<(f64, LinExt)> = starts
         .iter()
         .filter_map(|st| prefit_body(data, st, PREFIT_ITERS))
@@ -112,7 +118,7 @@ fn fit_prefitted(data: &Data, starts: &[LinExt]) -> Option<(LinExt, LmResult)> {
     scored.sort_by(|a, b| a.0.total_cmp(&b.0));
     let mut best: Option<(LinExt, LmResult)> = None;
     for (_, st) in scored.iter().take(JOINT_STARTS) {
-        if let Some((m, r)) = fit_linear(data, &data.targets, Lin::Mode, st, JOINT_ITERS) {
+        if let Some((m, r)) = fit_linear(data, &data.targets, joint, st, JOINT_ITERS) {
             if best.as_ref().is_none_or(|b| r.cost < b.1.cost) {
                 best = Some((m, r));
             }

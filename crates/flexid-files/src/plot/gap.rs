@@ -32,8 +32,12 @@ fn unwrap(p: &mut [f64]) {
     }
 }
 
-/// The SVG text of the diagnosis plot.
+/// The SVG text of the diagnosis plot (on the trajectory path, which has no FRF, the
+/// force plot of [`super::trajectory_svg`]).
 pub fn gap_svg(d: &Diagnosis) -> String {
+    if d.trajectory.is_some() {
+        return super::trajectory_svg(d);
+    }
     let data = &d.data;
     let (f0, f1) = (
         data.f_min().max(1e-6),

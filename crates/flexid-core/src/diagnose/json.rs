@@ -125,6 +125,7 @@ pub fn trajectory_json(t: &TrajectoryFit) -> Value {
         "edge_samples": p.edge_samples,
         "pad_samples": p.filter.pad_samples(t.samples_total),
         "velocity_threshold_rad_s": num(p.velocity_threshold_rad_s),
+        "spread_samples": p.spread_samples,
         "velocity_noise_rad_s": num(t.velocity_noise_rad_s),
         "noise_rms_nm": num(t.noise_rms_nm),
         "within_noise_threshold": num(t.within_noise_threshold),

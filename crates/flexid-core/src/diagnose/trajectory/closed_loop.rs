@@ -16,6 +16,9 @@ pub struct Plant {
     pub viscous: f64,
     pub coulomb: f64,
     pub offset: f64,
+    /// A restoring spring to the ground [N/m] (not in the identified model: 0 unless a
+    /// test wants a gap the model cannot explain).
+    pub spring: f64,
 }
 
 /// The experiment.
@@ -121,7 +124,7 @@ pub fn simulate(p: &Plant, s: &Setup) -> Recording {
             let ar = acc_ref[k * s.substeps + j];
             qr += vr * h + 0.5 * ar * h * h;
             vr += ar * h;
-            let drive = cmd - p.offset;
+            let drive = cmd - p.offset - p.spring * q;
             if v == 0.0 && drive.abs() <= p.coulomb {
                 continue; // stuck: static friction holds the drive
             }

@@ -10,6 +10,7 @@ const PLANT: Plant = Plant {
     viscous: 200.0,
     coulomb: 20.0,
     offset: -3.0,
+    spring: 0.0,
 };
 
 fn opts() -> DiagnoseOptions {
@@ -124,6 +125,27 @@ fn without_coulomb_friction_the_verdict_is_none() {
     assert_eq!(d.verdict, Effect::None, "notes: {:#?}", d.notes);
     assert!(d.effects.is_empty() && d.winner.is_none());
     assert_finite_json(&to_json(&d), "");
+}
+
+/// A force the model has no term for (a spring to the ground, 1.5 kN/m: 90 N at the
+/// stroke's end), no Coulomb friction: the residual is far beyond the noise and nothing
+/// explains it.
+#[test]
+fn a_force_outside_the_model_is_unexplained() {
+    let plant = Plant {
+        coulomb: 0.0,
+        spring: 1500.0,
+        ..PLANT
+    };
+    let rec = simulate(&plant, &Setup::default());
+    let d = diagnose(&[rec], &opts()).unwrap();
+    let t = d.trajectory.as_ref().unwrap();
+    assert!(
+        !t.within_noise(t.kept_fit()),
+        "{}",
+        t.reduced_chi2(t.kept_fit())
+    );
+    assert_eq!(d.verdict, Effect::Unexplained, "notes: {:#?}", d.notes);
 }
 
 #[test]

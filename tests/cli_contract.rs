@@ -13,7 +13,9 @@
 //!   a message;
 //! * without the JSON sidecar the rate is inferred from `time_s` and the period from the
 //!   torque, and the model is still right;
-//! * `demo --out DIR` writes excitation.csv, recording.csv, result.json and bode.svg.
+//! * `demo --out DIR` writes excitation.csv, recording.csv, result.json and bode.svg;
+//! * `diagnose --masses 1` on a non-periodic recording takes the trajectory path (IDIM-LS
+//!   of a rigid body with friction), keeps the JSON contract and draws a force plot.
 
 mod cli_common;
 use cli_common::{expect_code, flexid, text};
@@ -453,4 +455,108 @@ fn demo_writes_its_four_files() {
         j["model"]
     );
     assert_matches_plant(&j["model"], 0.03);
+}
+
+/// A non-periodic recording of a rigid body with Coulomb and viscous friction, written as
+/// `REC.csv` + `REC.json` (no excitation: not periodic): open loop, a bang-bang torque
+/// plus a sine, held over each sample, integrated on 20 sub-steps with stiction, the
+/// encoder quantised to 2^16 counts per turn. Returns (J, Fv, Fc) [kg m², N m s/rad, N m].
+fn trajectory_recording(dir: &Path, velocity_only: bool) -> (f64, f64, f64) {
+    let (j, fv, fc, fs, sub) = (0.05, 0.3, 0.4, 1000.0, 20);
+    let count = 2.0 * std::f64::consts::PI / 65536.0;
+    let h = 1.0 / (fs * sub as f64);
+    let (mut q, mut v) = (0.0f64, 0.0f64);
+    let mut csv = if velocity_only {
+        String::from("time_s,torque_cmd_nm,velocity_rad_s\n")
+    } else {
+        String::from("time_s,torque_cmd_nm,position_rad\n")
+    };
+    for k in 0..12_000 {
+        let t = k as f64 / fs;
+        let tau = 1.5 * (2.0 * std::f64::consts::PI * 0.37 * t).sin().signum()
+            + 0.6 * (2.0 * std::f64::consts::PI * 1.7 * t).sin();
+        let motion = if velocity_only {
+            v
+        } else {
+            (q / count).round() * count
+        };
+        csv += &format!("{t},{tau},{motion}\n");
+        for _ in 0..sub {
+            if v == 0.0 && tau.abs() <= fc {
+                continue;
+            }
+            let dir = if v != 0.0 { v.signum() } else { tau.signum() };
+            let a = (tau - fv * v - fc * dir) / j;
+            let vn = v + a * h;
+            if v != 0.0 && vn * v < 0.0 {
+                q -= 0.5 * v * v / a;
+                v = 0.0;
+            } else {
+                q += v * h + 0.5 * a * h * h;
+                v = vn;
+            }
+        }
+    }
+    std::fs::write(dir.join("REC.csv"), csv).unwrap();
+    std::fs::write(dir.join("REC.json"), r#"{"sample_rate_hz": 1000.0}"#).unwrap();
+    (j, fv, fc)
+}
+
+/// `diagnose --masses 1` on a non-periodic recording takes the trajectory path: the JSON
+/// contract (`verdict`, `effects`, `gap.before_rms_db`, `gap.after_rms_db`, `gap.bands`,
+/// `ranking`) with `null` where a figure does not apply, never NaN; the friction found;
+/// `--svg` a force plot. A recording without a position exits 1 and says why.
+#[test]
+fn diagnose_a_trajectory_recording() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let (j, fv, fc) = trajectory_recording(dir, false);
+    let out = flexid(
+        &[
+            "diagnose", "REC.csv", "--masses", "1", "--json", "d.json", "--svg", "d.svg",
+        ],
+        dir,
+    );
+    let (so, _) = expect_code(&out, 0, "diagnose trajectory");
+    assert!(so.contains("trajectory path"), "{so}");
+    let raw = std::fs::read_to_string(dir.join("d.json")).unwrap();
+    assert!(!raw.contains("NaN") && !raw.contains("inf"), "{raw}");
+    let d: Value = serde_json::from_str(&raw).unwrap();
+    assert_eq!(d["verdict"], "coulomb_friction", "{so}");
+    assert_eq!(d["effects"][0]["effect"], "coulomb_friction");
+    let gap = &d["gap"];
+    let (before, after) = (
+        gap["before_rms_db"].as_f64().unwrap(),
+        gap["after_rms_db"].as_f64().unwrap(),
+    );
+    assert!(after < before, "{gap}");
+    assert!(gap["bands"].as_array().unwrap().is_empty());
+    assert!(gap["before_magnitude_rms_db"].is_null());
+    assert!(!d["ranking"].as_array().unwrap().is_empty());
+    let param = |name: &str| {
+        d["trajectory"]["params"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|p| p["name"] == name)
+            .and_then(|p| p["value"].as_f64())
+            .unwrap()
+    };
+    for (name, want) in [
+        ("inertia_kgm2", j),
+        ("viscous_nms_per_rad", fv),
+        ("coulomb_nm", fc),
+    ] {
+        let got = param(name);
+        assert!((got / want - 1.0).abs() < 0.05, "{name}: {got} vs {want}");
+    }
+    let svg = std::fs::read_to_string(dir.join("d.svg")).unwrap();
+    assert!(svg.contains("<svg") && svg.contains("filtered force"));
+    assert!(!svg.contains("NaN"));
+
+    let vel = tempfile::tempdir().unwrap();
+    trajectory_recording(vel.path(), true);
+    let out = flexid(&["diagnose", "REC.csv", "--masses", "1"], vel.path());
+    let (_, se) = expect_code(&out, 1, "diagnose without a position");
+    assert!(se.contains("position"), "{se}");
 }

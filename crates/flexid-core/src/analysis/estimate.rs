@@ -28,6 +28,16 @@ pub struct EstimatedFrf {
     pub choices: String,
 }
 
+/// The recording's excitation when it is periodic (a multisine or stepped design with a
+/// period), `None` for anything else (a chirp, a trajectory, no description): the test
+/// that picks the periodic estimator in [`estimate_frf`], and the trajectory path of the
+/// diagnosis.
+pub fn periodic_excitation(rec: &Recording) -> Option<&crate::excitation::ExcitationInfo> {
+    rec.sidecar.excitation.as_ref().filter(|e| {
+        e.kind != ExcitationKind::Other && e.kind != ExcitationKind::Chirp && e.period_samples > 0
+    })
+}
+
 /// Estimate the torque -> motion FRF of a recording.
 ///
 /// Position is differenced to velocity (never `j w` times the DFT of a drifting position);
@@ -49,9 +59,7 @@ pub fn estimate_frf(
         MotionSignal::Acceleration => (signal.to_vec(), FrfKind::Other),
     };
     let u = &rec.torque_cmd_nm;
-    let periodic = rec.sidecar.excitation.as_ref().filter(|e| {
-        e.kind != ExcitationKind::Other && e.kind != ExcitationKind::Chirp && e.period_samples > 0
-    });
+    let periodic = periodic_excitation(rec);
     let mut out = if let Some(info) = periodic {
         let mut est = frf::PeriodicEstimator::from_info(info, fs, kind)?;
         est.push(u, &y)?;

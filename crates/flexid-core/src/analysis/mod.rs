@@ -10,7 +10,7 @@ mod pipeline;
 mod summary;
 mod time_cap;
 
-pub use estimate::{estimate_frf, EstimatedFrf};
+pub use estimate::{estimate_frf, periodic_excitation, EstimatedFrf};
 pub use json::to_json;
 pub use pipeline::{analyze, Analysis, AnalysisError, AnalysisOptions};
 pub use summary::{Coupling, ModelSummary};

@@ -1,7 +1,9 @@
 //! The diagnosis as JSON (the contract: `verdict`, `effects[{effect, after_rms_db, score,
 //! params}]`, `gap.{before_rms_db, after_rms_db,
-//! bands[{lo_hz, hi_hz, excess_db}]}`, `ranking[{effect, after_rms_db, score}]`).
+//! bands[{lo_hz, hi_hz, excess_db}]}`, `ranking[{effect, after_rms_db, score}]`; on the
+//! trajectory path also `trajectory{...}`, [`trajectory_json`]).
 
+use super::trajectory::{idim::LsFit, Kept, TrajectoryFit};
 use super::Diagnosis;
 use serde_json::{json, Value};
 
@@ -70,7 +72,72 @@ pub fn to_json(d: &Diagnosis) -> Value {
             "stiffness_nm_per_rad": chain.stiffness_nm_per_rad,
             "damping_nms_per_rad": chain.damping_nms_per_rad,
         },
+        "trajectory": d.trajectory.as_ref().map(trajectory_json),
         "notes": d.notes,
         "seconds": num(d.seconds),
+    })
+}
+
+fn ls_json(t: &TrajectoryFit, f: &LsFit) -> Value {
+    json!({
+        "params": f.columns.iter().zip(f.theta.iter().zip(&f.std)).map(|(c, (v, s))| json!({
+            "name": c.name(), "value": num(*v), "std": num(*s),
+        })).collect::<Vec<_>>(),
+        "residual_rss_nm2": num(f.rss),
+        "relative_error_pct": num(100.0 * f.relative_error),
+        "condition_number": num(f.condition),
+        "reduced_chi2": num(t.reduced_chi2(f)),
+        "within_noise": t.within_noise(f),
+    })
+}
+
+/// The trajectory path's figures: the kept model's parameters (`params`, the units in
+/// the names: the recording's, N m and rad), each nested model, the cut-off and how it was
+/// found, the samples, the noise, the significance tests and the cross-tests.
+pub fn trajectory_json(t: &TrajectoryFit) -> Value {
+    let kept = t.kept_fit();
+    let p = &t.processing;
+    let c = &t.cutoff;
+    json!({
+        "method": "idim_ls",
+        "model": match t.kept {
+            Kept::Rigid => "rigid",
+            Kept::RigidViscous => "rigid_viscous",
+            Kept::RigidFriction => "rigid_coulomb_viscous",
+        },
+        "params": ls_json(t, &t.rigid_friction)["params"].clone(),
+        "kept": ls_json(t, kept),
+        "models": {
+            "rigid": ls_json(t, &t.rigid),
+            "rigid_viscous": ls_json(t, &t.rigid_viscous),
+            "rigid_coulomb_viscous": ls_json(t, &t.rigid_friction),
+        },
+        "relative_error_pct": num(100.0 * t.rigid_friction.relative_error),
+        "condition_number": num(t.rigid_friction.condition),
+        "viscous": {"sigmas": num(t.viscous_sigmas), "bic_score": num(t.viscous_score), "significant": t.viscous_significant},
+        "coulomb": {"sigmas": num(t.coulomb_sigmas), "bic_score": num(t.coulomb_score), "named": t.coulomb_named},
+        "cutoff_hz": num(c.cutoff_hz),
+        "cutoff_capped": c.capped,
+        "cutoff_rule": "position spectrum (1/3-octave median) at twice its white-noise floor",
+        "floor_band_hz": [num(c.floor_band_hz[0]), num(c.floor_band_hz[1])],
+        "welch_resolution_hz": num(c.resolution_hz),
+        "position_floor_rad2_per_hz": num(c.position_floor_rad2_per_hz),
+        "force_floor_nm2_per_hz": num(c.force_floor_nm2_per_hz),
+        "butterworth_order": p.filter.order,
+        "decimation": p.decimation,
+        "edge_samples": p.edge_samples,
+        "pad_samples": p.filter.pad_samples(t.samples_total),
+        "velocity_threshold_rad_s": num(p.velocity_threshold_rad_s),
+        "spread_samples": p.spread_samples,
+        "velocity_noise_rad_s": num(t.velocity_noise_rad_s),
+        "noise_rms_nm": num(t.noise_rms_nm),
+        "within_noise_threshold": num(t.within_noise_threshold),
+        "samples_total": t.samples_total,
+        "samples_candidates": t.candidates,
+        "samples_used": t.used,
+        "cross_tests": t.cross_tests.iter().map(|x| json!({
+            "recording": x.recording, "samples": x.samples,
+            "relative_error_pct": num(100.0 * x.relative_error),
+        })).collect::<Vec<_>>(),
     })
 }

@@ -3,7 +3,9 @@
 //! explains it ([`effects`], ranked in [`rank`]) and how far the gap shrinks with it.
 //!
 //! [`diagnose`] takes one recording per excitation amplitude and the nominal number of
-//! bodies; plain code, no I/O. The CLI is `flexid diagnose`.
+//! bodies; plain code, no I/O. The CLI is `flexid diagnose`. Non-periodic recordings of
+//! one body (trajectories, often in closed loop) take the time-domain path of
+//! [`trajectory`] instead: the rigid body with friction by inverse dynamics.
 
 pub mod acceleration;
 pub mod distortion;
@@ -20,6 +22,7 @@ pub mod select;
 pub mod simplex;
 #[cfg(test)]
 mod tests_support;
+pub mod trajectory;
 
 use crate::analysis::{analyze, estimate_frf, AnalysisOptions};
 use crate::frf::{FrfKind, NonExcitedLevels};
@@ -56,6 +59,8 @@ pub enum DiagnoseError {
     NoNominal(usize, usize),
     #[error("the recordings have different sample rates")]
     Rates,
+    #[error("recording {0} (trajectory path): {1}")]
+    Trajectory(usize, trajectory::TrajectoryError),
 }
 
 /// Options of [`diagnose`].
@@ -346,6 +351,12 @@ pub struct Diagnosis {
     /// (by effect name), `select` (ranking and forward selection), `rank` (the verdict and the gap). Empty where the thread's CPU time is not
     /// available.
     pub stage_cpu_s: Vec<(&'static str, f64)>,
+    /// The time-domain identification when the trajectory path was taken (a non-periodic
+    /// recording and one body, [`trajectory::diagnosis::applies`]): the rigid body with
+    /// friction by IDIM-LS, its cut-off, samples, noise and cross-tests. The other fields
+    /// then hold its verdict, gap (force residuals) and ranking, and no FRF (`data.levels`
+    /// is empty). `None` on the frequency-domain path.
+    pub trajectory: Option<trajectory::TrajectoryFit>,
 }
 
 /// Per-stage CPU time of the calling thread (see [`Diagnosis::stage_cpu_s`]), read from
@@ -430,6 +441,13 @@ fn nominal_start(
 pub fn diagnose(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Diagnosis, DiagnoseError> {
     let t0 = std::time::Instant::now();
     let mut stage = StageClock::start(opts.cpu_clock);
+    if trajectory::diagnosis::applies(recs, opts.masses) {
+        let mut d = trajectory::diagnosis::diagnose(recs, opts)?;
+        stage.lap("trajectory");
+        d.seconds = t0.elapsed().as_secs_f64();
+        d.stage_cpu_s = stage.stages;
+        return Ok(d);
+    }
     // an acceleration response is diagnosed as the position it integrates to
     let recs: Vec<Recording> = recs.iter().map(acceleration::as_position).collect();
     let data = prepare(&recs, opts)?;
@@ -540,6 +558,7 @@ pub fn diagnose(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Diagnosis,
         notes,
         seconds: t0.elapsed().as_secs_f64(),
         stage_cpu_s: stage.stages,
+        trajectory: None,
     })
 }
 

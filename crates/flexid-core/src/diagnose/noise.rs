@@ -14,14 +14,17 @@
 //! largest value one expects among `L` lines (the `1 - 1/L` quantile; without the truncation
 //! the variance is infinite for `P <= 3` and the sum's spread is dominated by a tail no
 //! finite record shows). The gap is noise while the reduced chi² is below
-//! `m + SIGMA · sqrt(v/L)` (`SIGMA` = [`super::effects::viscous::SIGNIFICANT_SIGMA`], 3: one
+//! `m + SIGMA · sqrt(v/L)` (`SIGMA` = [`SIGNIFICANT_SIGMA`], 3: one
 //! chance in 740 that noise alone is called a gap).
 //!
 //! Neglected, and why it is small: the parameters the nominal model fits (a few of
 //! hundreds of lines), the correlation of neighbouring Welch lines (Hann window, half
 //! overlap: it widens the spread, not the mean).
 
-use super::effects::viscous::SIGNIFICANT_SIGMA;
+/// Significance of a parameter that must differ from zero, or of a gap that must exceed
+/// the noise [standard deviations]: the one-sided probability that noise alone reaches it
+/// is 0.13 %.
+pub const SIGNIFICANT_SIGMA: f64 = 3.0;
 
 /// The noise floor of the reduced chi² for a set of levels.
 #[derive(Debug, Clone, Copy, PartialEq)]

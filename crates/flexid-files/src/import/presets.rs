@@ -80,10 +80,15 @@ fn f16(file: &'static str, period: usize) -> (&'static str, MatSpec) {
     (file, spec)
 }
 
+/// EMPS: `vir` is the controller output in volts (its range is +-4.3 under a 10 V
+/// saturation; the PDF's eq. 7: force = gtau nu), so the force in N is `gtau * vir` with the
+/// file's own `gtau` (35.15 N/V). The IDIM-LS on the converted force finds M = 94.8 kg
+/// (published 95.1 kg); on `vir` itself it would be 2.70 V s²/m.
 fn emps(file: &'static str) -> (&'static str, MatSpec) {
     let spec = MatSpec {
         sample_rate_hz: Some(1000.0),
-        notes: "EMPS prismatic drive (Janot, Gautier & Brunot 2019), closed loop, bang-bang trajectories: the torque column holds the motor force on the load side `vir` [N], the position column the motor position on the load side `qm` [m], not rad; fs 1 kHz (dt of `t`)".into(),
+        input_scale_var: Some("gtau".into()),
+        notes: "EMPS prismatic drive (Janot, Gautier & Brunot 2019), closed loop, bang-bang trajectories: the torque column holds the motor force on the load side [N] = gtau [N/V] x the controller output `vir` [V], the position column the motor position on the load side `qm` [m], not rad; fs 1 kHz (dt of `t`)".into(),
         ..MatSpec::new("vir", "qm", MotionSignal::Position)
     };
     (file, spec)
@@ -101,7 +106,7 @@ fn emps(file: &'static str) -> (&'static str, MatSpec) {
 /// * `f16` (= `f16-level1`), `f16-level{2-validation,3,5,7}`: `Force` [N] -> `Acceleration`
 ///   channel 0 (at the shaker), fs from `Fs` (400 Hz), 9 periods of 8192, 1 transient; 267
 ///   lines 41..307 (2-15 Hz) from `Voltage`. `f16-special-odd`: 3 periods of 16384.
-/// * `emps`, `emps-pulses`: `vir` [N] -> `qm` [m], 1 kHz, not periodic, closed loop.
+/// * `emps`, `emps-pulses`: `gtau * vir` [N] -> `qm` [m], 1 kHz, not periodic, closed loop.
 pub fn preset(name: &str) -> Option<(&'static str, MatSpec)> {
     Some(match name {
         "fditools-typeA" => fditools("fditools-motor-bench/MultisineTypeA.mat", false, false),

@@ -28,6 +28,9 @@ pub struct MatSpec {
     pub input_column: Option<usize>,
     /// Factor applied to the input (e.g. a torque constant [N m/A]); 1 keeps the file's units.
     pub input_scale: f64,
+    /// A scalar variable of the file whose value also multiplies the input (e.g. a drive
+    /// gain `gtau` [N/V] stored beside a controller output in volts); `None`: none.
+    pub input_scale_var: Option<String>,
     /// Output variable (e.g. `theta_mx`).
     pub output: String,
     /// Channel of the output when it is a matrix (text files: column, default 1).
@@ -63,6 +66,7 @@ impl Default for MatSpec {
             input: String::new(),
             input_column: None,
             input_scale: 1.0,
+            input_scale_var: None,
             output: String::new(),
             output_column: None,
             output_kind: MotionSignal::Position,
@@ -110,8 +114,23 @@ pub fn mat_to_recording(path: &Path, spec: &MatSpec) -> Result<Recording, Import
         None => None,
     };
     let file = file_name(path);
+    let mut spec = spec.clone();
+    let mut scaled_by = String::new();
+    if let Some(name) = &spec.input_scale_var {
+        let g = scalar(&mat, path, name, "input scale")?;
+        if !(g.is_finite() && g != 0.0) {
+            return Err(ImportError::BadVariable {
+                path: path.to_path_buf(),
+                name: name.clone(),
+                reason: format!("is {g}, not a usable input scale"),
+            });
+        }
+        spec.input_scale *= g;
+        scaled_by = format!(" x `{name}` = {g}");
+    }
+    let spec = &spec;
     let what = format!(
-        "{file} (MAT v5: {}): torque_cmd_nm <- `{}`{}, {} <- `{}`{}; fs {fs} Hz ({fs_from})",
+        "{file} (MAT v5: {}): torque_cmd_nm <- `{}`{}{scaled_by}, {} <- `{}`{}; fs {fs} Hz ({fs_from})",
         mat.header_text.split(',').next().unwrap_or(""),
         spec.input,
         column_text(spec.input_column),
@@ -291,20 +310,23 @@ fn missing(mat: &MatFile, path: &Path, name: &str) -> ImportError {
     }
 }
 
+/// The value of scalar variable `name` (`what` it is for, in the error).
+fn scalar(mat: &MatFile, path: &Path, name: &str, what: &str) -> Result<f64, ImportError> {
+    let v = mat.get(name).ok_or_else(|| missing(mat, path, name))?;
+    v.as_scalar().ok_or_else(|| ImportError::BadVariable {
+        path: path.to_path_buf(),
+        name: name.to_string(),
+        reason: format!("is {}, not a scalar {what}", v.describe()),
+    })
+}
+
 /// The sample rate [Hz] from the file, and the variable it came from.
 fn sample_rate_from_file(
     mat: &MatFile,
     path: &Path,
     var: Option<&str>,
 ) -> Result<(f64, String), ImportError> {
-    let scalar = |name: &str| -> Result<f64, ImportError> {
-        let v = mat.get(name).ok_or_else(|| missing(mat, path, name))?;
-        v.as_scalar().ok_or_else(|| ImportError::BadVariable {
-            path: path.to_path_buf(),
-            name: name.to_string(),
-            reason: format!("is {}, not a scalar sample rate", v.describe()),
-        })
-    };
+    let scalar = |name: &str| scalar(mat, path, name, "sample rate");
     if let Some(name) = var {
         return Ok((scalar(name)?, format!("from `{name}`")));
     }

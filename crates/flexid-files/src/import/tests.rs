@@ -554,7 +554,9 @@ fn emps_and_every_preset_loads() {
     if data_file("emps/DATA_EMPS.mat").is_some() {
         let rec = load_preset("emps", &dir).unwrap().unwrap();
         assert_eq!(rec.len(), 24841);
-        assert_eq!(rec.torque_cmd_nm[0], 2.5386280888756465);
+        // the force in N: gtau [N/V] (35.15065188 in the file) times `vir` [V]
+        let gtau = 35.15065188;
+        assert!(close(rec.torque_cmd_nm[0], gtau * 2.5386280888756465, 1e-8));
         let qm = rec.position_rad.as_ref().unwrap();
         assert_eq!((qm[0], qm[24840]), (7.45e-06, 0.00361505));
         assert!(close(qm.iter().sum(), 3074.4318380999994, 1e-12));

@@ -73,13 +73,25 @@ fn labelled_bands(d: &Diagnosis) -> Vec<(flexid_core::diagnose::localise::Band, 
     kept
 }
 
-/// The SVG text of the diagnosis plot.
+/// The SVG text of the diagnosis plot (on the trajectory path, which has no FRF, the
+/// force plot of [`super::trajectory_svg`]).
 pub fn gap_svg(d: &Diagnosis) -> String {
+    if d.trajectory.is_some() {
+        return super::trajectory_svg(d);
+    }
     let data = &d.data;
     let (f0, f1) = (
         data.f_min().max(1e-6),
         data.f_max().max(data.f_min() * 1.01),
     );
+    if data.lines() == 0 || !(f0.is_finite() && f1.is_finite() && f1 > f0) {
+        // nothing to draw (the decade grid below would never end on an infinite range)
+        return format!(
+            r#"<svg xmlns="http://www.w3.org/2000/svg" width="{W}" height="60" font-family="sans-serif" font-size="12"><rect width="100%" height="100%" fill="white"/><text x="10" y="30">flexid diagnose: verdict {}; no FRF lines to draw</text></svg>
+"#,
+            d.verdict
+        );
+    }
     let x = |f: f64| L + (W - L - R) * (f / f0).ln() / (f1 / f0).ln();
     let mut curves: Vec<(String, &str, Vec<f64>, Vec<f64>, Vec<f64>, bool)> = Vec::new();
     for (i, l) in data.levels.iter().enumerate() {

@@ -9,12 +9,14 @@ mod bode;
 mod error;
 mod gap;
 mod series;
+mod trajectory;
 mod units;
 
 pub use bode::BodePlot;
 pub use error::PlotError;
 pub use gap::gap_svg;
 pub use series::{BAND_FLOOR_RELATIVE, PHASE_BAND_MAX_DEG};
+pub use trajectory::trajectory_svg;
 pub use units::{frf_unit, magnitude_label};
 
 #[cfg(test)]

@@ -4,6 +4,9 @@ use flexid_core::diagnose::Diagnosis;
 use std::fmt::Write;
 
 pub fn render(d: &Diagnosis) -> String {
+    if let Some(t) = &d.trajectory {
+        return super::trajectory::render_trajectory(d, t);
+    }
     let mut s = String::new();
     let g = &d.gap;
     let _ = writeln!(

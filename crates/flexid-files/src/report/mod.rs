@@ -2,5 +2,6 @@
 
 pub mod analysis;
 pub mod diagnosis;
+pub mod trajectory;
 
 pub use analysis::render_report;

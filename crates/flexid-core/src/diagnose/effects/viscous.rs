@@ -13,9 +13,7 @@ use super::{fit_best_start, log_std, model_on, Lin};
 use crate::diagnose::lti::LinExt;
 use crate::diagnose::Data;
 
-/// Significance of a parameter that must differ from zero [standard deviations]: the
-/// one-sided probability that noise alone reaches it is 0.13 %.
-pub const SIGNIFICANT_SIGMA: f64 = 3.0;
+pub use crate::diagnose::noise::SIGNIFICANT_SIGMA;
 
 /// The outcome of [`nominal_with_viscous`].
 pub struct ViscousNominal {

@@ -581,11 +581,14 @@ fn emps_trajectory_finds_coulomb_and_viscous_friction() {
     );
 }
 
-/// A Python with numpy and scipy: the repository's `.venv` (scripts/bench.sh), else
-/// `python3` on the PATH; `None` when neither imports both.
+/// A Python with numpy and scipy: the repository's `.venv-interop` (scripts/pyenv-interop.sh,
+/// run by the test command) or `.venv` (scripts/bench.sh), else `python3` on the PATH;
+/// `None` when none imports both.
 fn python_with_scipy() -> Option<PathBuf> {
-    let venv = Path::new(env!("CARGO_MANIFEST_DIR")).join(".venv/bin/python");
-    [venv, PathBuf::from("python3")].into_iter().find(|py| {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let interop = root.join(".venv-interop/bin/python");
+    let venv = root.join(".venv/bin/python");
+    [interop, venv, PathBuf::from("python3")].into_iter().find(|py| {
         Command::new(py)
             .args(["-c", "import numpy, scipy.signal, scipy.io"])
             .output()

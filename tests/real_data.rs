@@ -588,12 +588,14 @@ fn python_with_scipy() -> Option<PathBuf> {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let interop = root.join(".venv-interop/bin/python");
     let venv = root.join(".venv/bin/python");
-    [interop, venv, PathBuf::from("python3")].into_iter().find(|py| {
-        Command::new(py)
-            .args(["-c", "import numpy, scipy.signal, scipy.io"])
-            .output()
-            .is_ok_and(|o| o.status.success())
-    })
+    [interop, venv, PathBuf::from("python3")]
+        .into_iter()
+        .find(|py| {
+            Command::new(py)
+                .args(["-c", "import numpy, scipy.signal, scipy.io"])
+                .output()
+                .is_ok_and(|o| o.status.success())
+        })
 }
 
 /// The trajectory path against an independent implementation of the same method

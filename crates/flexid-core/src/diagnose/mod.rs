@@ -465,7 +465,7 @@ pub fn diagnose(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Diagnosis,
     stage.lap("residual");
 
     let mut candidates = Candidates::new(&mut stage);
-    fit_linear_candidates(&data, &nom_lin, &mut candidates);
+    fit_linear_candidates(&data, &nom_lin, &idents, &mut candidates);
     if let (false, Some((with, _))) = (viscous.significant, &viscous.with_viscous) {
         // viscous friction not significant on the nominal chain alone (a large gap
         // elsewhere can hide it): each linear effect is also tried on top of it, the
@@ -583,7 +583,7 @@ fn fit_next(
         fits.extend(effects::current_loop::fit(data, base));
     }
     if wanted(Effect::Gravity) {
-        fits.extend(effects::gravity::fit(data, base));
+        fits.extend(effects::gravity::fit(data, base, &[]));
     }
     if wanted(Effect::UnmodelledMode) {
         let here = effects::finish_linear(data, Effect::None, base.clone(), vec![], 0);
@@ -748,13 +748,21 @@ impl<'a> Candidates<'a> {
 
 /// The linear candidates that extend the nominal chain's transfer function: time delay,
 /// current loop, gravity.
-fn fit_linear_candidates(data: &Data, nom_lin: &LinExt, c: &mut Candidates) {
+fn fit_linear_candidates(
+    data: &Data,
+    nom_lin: &LinExt,
+    idents: &[crate::model::Chain],
+    c: &mut Candidates,
+) {
     c.push(effects::delay::fit(data, nom_lin), Effect::TimeDelay);
     c.push(
         effects::current_loop::fit(data, nom_lin),
         Effect::CurrentLoop,
     );
-    c.push(effects::gravity::fit(data, nom_lin), Effect::Gravity);
+    c.push(
+        effects::gravity::fit(data, nom_lin, idents),
+        Effect::Gravity,
+    );
 }
 
 /// The linear candidates on the nominal chain with viscous friction to the ground that was

@@ -9,19 +9,31 @@ use crate::diagnose::Data;
 use crate::diagnose::Effect;
 use crate::model::Chain;
 
-/// Identify gravity with the chain, started from `nominal` plus a grid of restoring
-/// stiffnesses and dampings.
-pub fn fit(data: &Data, nominal: &LinExt) -> Option<EffectFit> {
+/// Identify gravity with the chain, started from `nominal` (and from the chains `idents`
+/// with its extensions: a nominal chain fitted without gravity can have bent a nearly
+/// free body into mimicking it, whose spring is then softer than any restoring stiffness
+/// the data need) plus a grid of restoring stiffnesses and dampings.
+pub fn fit(data: &Data, nominal: &LinExt, idents: &[Chain]) -> Option<EffectFit> {
     let jt = nominal.chain.total_inertia();
     let w0 = 2.0 * std::f64::consts::PI * data.f_min();
-    let starts: Vec<LinExt> = [0.1, 0.3, 1.0, 3.0, 10.0, 30.0, 100.0]
+    let bases: Vec<LinExt> = std::iter::once(nominal.clone())
+        .chain(idents.iter().map(|c| LinExt {
+            chain: c.clone(),
+            ..nominal.clone()
+        }))
+        .collect();
+    let starts: Vec<LinExt> = bases
         .iter()
-        .flat_map(|m| [0.02, 0.1, 0.3].map(|z| (*m, z)))
-        .map(|(m, z)| {
-            let mut s = nominal.clone();
-            s.ground_k = m * jt * w0 * w0;
-            s.motor_b = 2.0 * z * (s.ground_k * jt).sqrt();
-            s
+        .flat_map(|base| {
+            [0.1, 0.3, 1.0, 3.0, 10.0, 30.0, 100.0]
+                .iter()
+                .flat_map(|m| [0.02, 0.1, 0.3].map(|z| (*m, z)))
+                .map(move |(m, z)| {
+                    let mut s = base.clone();
+                    s.ground_k = m * jt * w0 * w0;
+                    s.motor_b = 2.0 * z * (s.ground_k * jt).sqrt();
+                    s
+                })
         })
         .collect();
     let (m, r) = fit_best_start(data, Lin::Gravity, &starts, 80, 3)?;

@@ -14,17 +14,20 @@ use crate::model::Chain;
 /// free body into mimicking it, whose spring is then softer than any restoring stiffness
 /// the data need) plus a grid of restoring stiffnesses and dampings.
 pub fn fit(data: &Data, nominal: &LinExt, idents: &[Chain]) -> Option<EffectFit> {
-    let jt = nominal.chain.total_inertia();
     let w0 = 2.0 * std::f64::consts::PI * data.f_min();
+    // a chain whose last body is the ground (far heavier than the rest: the nominal fit
+    // took gravity as a body) is no base for a restoring stiffness on top
     let bases: Vec<LinExt> = std::iter::once(nominal.clone())
         .chain(idents.iter().map(|c| LinExt {
             chain: c.clone(),
             ..nominal.clone()
         }))
+        .filter(|b| !ends_in_ground(&b.chain))
         .collect();
     let starts: Vec<LinExt> = bases
         .iter()
         .flat_map(|base| {
+            let jt = base.chain.total_inertia();
             [0.1, 0.3, 1.0, 3.0, 10.0, 30.0, 100.0]
                 .iter()
                 .flat_map(|m| [0.02, 0.1, 0.3].map(|z| (*m, z)))
@@ -40,19 +43,26 @@ pub fn fit(data: &Data, nominal: &LinExt, idents: &[Chain]) -> Option<EffectFit>
     Some(finish(data, m, &r))
 }
 
-/// Gravity started from a chain whose last body is far heavier (20x) than all the others
-/// together (an extra-body fit that found the ground): the bodies before it, its spring as
+/// Whether the last body of `chain` is far heavier (20x) than all the others together:
+/// the ground, its spring a restoring stiffness.
+pub fn ends_in_ground(chain: &Chain) -> bool {
+    let n = chain.masses();
+    n >= 2 && {
+        let je = chain.inertia_kgm2[n - 1];
+        let rest: f64 = chain.inertia_kgm2[..n - 1].iter().sum();
+        je > 20.0 * rest
+    }
+}
+
+/// Gravity started from a chain whose last body is the ground ([`ends_in_ground`]: an
+/// extra-body fit, or a nominal fit, that found it): the bodies before it, its spring as
 /// the restoring stiffness. None when the last body is not such a ground.
 pub fn from_ground_body(data: &Data, chain: &Chain) -> Option<EffectFit> {
     let n = chain.masses();
-    if n < 2 {
+    if !ends_in_ground(chain) {
         return None;
     }
-    let je = chain.inertia_kgm2[n - 1];
     let rest: f64 = chain.inertia_kgm2[..n - 1].iter().sum();
-    if !(je > 20.0 * rest) {
-        return None;
-    }
     let body = Chain::new(
         chain.inertia_kgm2[..n - 1].to_vec(),
         chain.stiffness_nm_per_rad[..n - 2].to_vec(),

@@ -2,11 +2,12 @@
 //! simulation): the bodies' positions from `(K - w^2 M + j w C) x = e_0 T` (a complex
 //! tridiagonal solve; ground springs and dampers on the diagonal), times the drive's
 //! transfer (delay, notch, current loop) and the sensor's (compliant shaft, position
-//! low-pass), plus the housing's own motion when the motor sits on a compliant bracket.
+//! low-pass).
 //!
 //! The nonlinear laws are linearised at rest: backlash in contact, hardening at zero
 //! deflection, gravity at the hanging position, cogging in its detent; Coulomb friction,
-//! the cubic ground spring and the amplifier's dead zone have no small-signal part.
+//! the cubic ground spring, the amplifier's dead zone and the encoder's play have no
+//! small-signal part.
 
 use super::plant::{LowPass, Plant};
 use super::simulator::Peaks;
@@ -123,22 +124,9 @@ pub fn sensor(plant: &Plant, f_hz: f64) -> Complex64 {
     h
 }
 
-/// The housing's compliance: its angle per unit motor torque, with the sign of the
-/// encoder's reading (`q_0 - q_h`, so `+1 / Z_h`).
-pub fn frame(plant: &Plant, f_hz: f64) -> Complex64 {
-    match &plant.frame {
-        None => Complex64::new(0.0, 0.0),
-        Some(f) => {
-            let s = jw(f_hz);
-            let w = 2.0 * std::f64::consts::PI * f.frequency_hz;
-            1.0 / (f.inertia_kgm2 * (s * s + 2.0 * f.damping_ratio * w * s + w * w))
-        }
-    }
-}
-
 /// Torque command -> measured position [rad/(N m)] at `f_hz` (continuous time).
 pub fn position(plant: &Plant, f_hz: f64) -> Complex64 {
-    drive(plant, f_hz) * (body_positions(plant, f_hz)[0] + frame(plant, f_hz)) * sensor(plant, f_hz)
+    drive(plant, f_hz) * body_positions(plant, f_hz)[0] * sensor(plant, f_hz)
 }
 
 /// Disturbance torque on the motor -> measured position [rad/(N m)] at `f_hz`.

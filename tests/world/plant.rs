@@ -98,16 +98,6 @@ pub struct Resonator {
     pub damping_ratio: f64,
 }
 
-/// The motor's housing (stator) on a compliant bracket: the motor's reaction torque turns
-/// it (`J_h q_h'' = -T - c_h q_h - d_h q_h'`), and the encoder, whose read head sits on the
-/// housing, measures the rotor against it (`q_0 - q_h`).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct Frame {
-    pub inertia_kgm2: f64,
-    pub frequency_hz: f64,
-    pub damping_ratio: f64,
-}
-
 /// The drive between the torque command and the motor's torque: a delay (communication
 /// and computation, any fraction of a sample), a notch filter on the torque reference, the
 /// current loop, and the power stage's dead zone (`sign(T) max(|T| - d, 0)`).
@@ -143,6 +133,10 @@ pub struct Sensor {
     /// A low-pass on the measured position only (the drive's encoder/velocity filter);
     /// the torque path and `torque_actual_nm` do not see it.
     pub lowpass: Option<LowPass>,
+    /// Play between the encoder's disc and its shaft (half of it; 0: none): the disc,
+    /// held by its bearing's friction, moves only when the shaft pushes it against one
+    /// side, so the reading lags by up to this much after every reversal.
+    pub half_play_rad: f64,
     pub output: Output,
     pub current_noise_nm: f64,
 }
@@ -167,7 +161,6 @@ pub struct Plant {
     pub gravity: Option<Gravity>,
     pub ground_cubic: Option<GroundCubic>,
     pub cogging: Option<Cogging>,
-    pub frame: Option<Frame>,
     pub drive: Drive,
     pub sensor: Sensor,
     /// Standard deviation of the white disturbance torque on the motor, held over each
@@ -196,12 +189,12 @@ impl Plant {
             gravity: None,
             ground_cubic: None,
             cogging: None,
-            frame: None,
             drive: Drive::default(),
             sensor: Sensor {
                 encoder_bits,
                 shaft: None,
                 lowpass: None,
+                half_play_rad: 0.0,
                 output: Output::Position,
                 current_noise_nm: 0.0,
             },

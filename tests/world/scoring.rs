@@ -266,11 +266,18 @@ pub fn report(outcomes: &[Outcome]) -> (String, bool) {
             };
             let halved = r.iter().filter(|x| **x <= 0.5).count();
             halved_all &= halved == r.len();
+            let right: Vec<f64> = named
+                .iter()
+                .filter(|o| o.verdict == *e && o.right)
+                .map(|o| o.after_db / o.before_db)
+                .collect();
+            let right_halved = right.iter().filter(|x| **x <= 0.5).count();
             let _ = writeln!(
                 s,
-                "  {e:20} named {:3}  median {med:.3}  worst {worst:.3}  halved {halved}/{}",
+                "  {e:20} named {:3}  median {med:.3}  worst {worst:.3}  halved {halved}/{}  (right verdicts: halved {right_halved}/{})",
                 r.len(),
-                r.len()
+                r.len(),
+                right.len()
             );
         }
         let _ = writeln!(

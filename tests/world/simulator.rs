@@ -41,7 +41,6 @@ pub struct Sample {
 #[derive(Debug, Clone, Copy)]
 struct Layout {
     bodies: usize,
-    frame: usize,
     notch: usize,
     current_loop: usize,
     shaft: usize,
@@ -58,14 +57,12 @@ impl Layout {
             at += n;
             i
         };
-        let frame = take(if p.frame.is_some() { 2 } else { 0 });
         let notch = take(if p.drive.notch.is_some() { 2 } else { 0 });
         let current_loop = take(p.drive.current_loop.map_or(0, |l| l.order as usize));
         let shaft = take(if p.sensor.shaft.is_some() { 2 } else { 0 });
         let lowpass = take(p.sensor.lowpass.map_or(0, |l| l.order as usize));
         Layout {
             bodies,
-            frame,
             notch,
             current_loop,
             shaft,
@@ -164,17 +161,7 @@ fn deriv(p: &Plant, l: &Layout, x: &[f64], u: f64, w: f64, dx: &mut [f64]) -> f6
     for i in 0..nb {
         dx[nb + i] /= p.inertia_kgm2[i];
     }
-    // the housing on its bracket
-    let (mut raw, mut raw_dot) = (q0, v0);
-    if let Some(f) = &p.frame {
-        let wh = rad_s(f.frequency_hz);
-        let (qh, vh) = (x[l.frame], x[l.frame + 1]);
-        dx[l.frame] = vh;
-        dx[l.frame + 1] =
-            -applied / f.inertia_kgm2 - wh * wh * qh - 2.0 * f.damping_ratio * wh * vh;
-        raw -= qh;
-        raw_dot -= vh;
-    }
+    let (mut raw, raw_dot) = (q0, v0);
     // the sensor path
     if let Some(s) = &p.sensor.shaft {
         let we = rad_s(s.frequency_hz);
@@ -239,7 +226,9 @@ fn torque_before_dead_zone(p: &Plant, l: &Layout, x: &[f64], u: f64) -> f64 {
 
 /// The kinks of the forces as functions of the state, each changing sign where a force's
 /// slope jumps: a backlash's flank touched (`|x| - g`) and its contact damping fully
-/// engaged (`|x| - g - ramp`), the amplifier's dead zone left (`|T| - d`).
+/// engaged (`|x| - g - ramp`), the amplifier's dead zone left (`|T| - d`); and where the
+/// motor reverses when the encoder has play (the disc then stays behind), so that the
+/// play is taken up at the true turning point.
 fn kinks(p: &Plant, l: &Layout, x: &[f64], u: f64, out: &mut Vec<f64>) {
     out.clear();
     for (k, c) in p.couplings.iter().enumerate() {
@@ -255,6 +244,26 @@ fn kinks(p: &Plant, l: &Layout, x: &[f64], u: f64, out: &mut Vec<f64>) {
     }
     if p.drive.dead_zone_nm > 0.0 {
         out.push(torque_before_dead_zone(p, l, x, u).abs() - p.drive.dead_zone_nm);
+    }
+    if p.sensor.half_play_rad > 0.0 {
+        // the reading reverses (the disc is left behind): its rate through zero
+        out.push(if p.sensor.lowpass.is_some() || p.sensor.shaft.is_some() {
+            0.0
+        } else {
+            x[l.bodies]
+        });
+    }
+}
+
+/// The encoder's reading of state `x` before any play: after the position low-pass, or
+/// the disc on its compliant shaft, or the motor's angle.
+fn reading(p: &Plant, l: &Layout, x: &[f64]) -> f64 {
+    if p.sensor.lowpass.is_some() {
+        x[l.lowpass]
+    } else if p.sensor.shaft.is_some() {
+        x[l.shaft]
+    } else {
+        x[0]
     }
 }
 
@@ -277,6 +286,8 @@ pub struct Sim {
     commands: Vec<f64>,
     cycle: usize,
     last_command: f64,
+    /// The encoder disc's angle when it sits on the shaft with play.
+    disc: f64,
     rng: rand::rngs::StdRng,
 }
 
@@ -306,6 +317,7 @@ impl Sim {
             commands: vec![0.0; delay_whole + 2],
             cycle: 0,
             last_command: 0.0,
+            disc: 0.0,
             rng: rand::rngs::StdRng::seed_from_u64(seed),
         }
     }
@@ -338,18 +350,16 @@ impl Sim {
             self.x[i] = q0;
             self.x[nb + i] = v0;
         }
+        self.disc = reading(&self.plant, &self.layout, &self.x);
     }
 
     /// The measured position before quantisation.
     fn measured(&self) -> f64 {
-        let (p, l) = (&self.plant, &self.layout);
-        if p.sensor.lowpass.is_some() {
-            return self.x[l.lowpass];
+        if self.plant.sensor.half_play_rad > 0.0 {
+            self.disc
+        } else {
+            reading(&self.plant, &self.layout, &self.x)
         }
-        if p.sensor.shaft.is_some() {
-            return self.x[l.shaft];
-        }
-        self.x[0] - p.frame.map_or(0.0, |_| self.x[l.frame])
     }
 
     /// Integrate `duration` seconds with command `u` and disturbance `w` on `n` RK4 steps.
@@ -367,8 +377,17 @@ impl Sim {
             trial,
             g0,
             g1,
+            disc,
             ..
         } = self;
+        let play = plant.sensor.half_play_rad;
+        // the disc is pushed by the shaft's reading only where the play is taken up
+        let carry = |x: &[f64], disc: &mut f64| {
+            if play > 0.0 {
+                let r = reading(plant, layout, x);
+                *disc = disc.clamp(r - play, r + play);
+            }
+        };
         let crossed = |a: &[f64], b: &[f64]| a.iter().zip(b).any(|(a, b)| (*a > 0.0) != (*b > 0.0));
         for _ in 0..n {
             let mut left = h;
@@ -378,6 +397,7 @@ impl Sim {
                 kinks(plant, layout, trial, u, g1);
                 if !crossed(g0, g1) {
                     x.copy_from_slice(trial);
+                    carry(x, disc);
                     left = 0.0;
                     break;
                 }
@@ -395,12 +415,14 @@ impl Sim {
                 }
                 rk4(plant, layout, x, hi * left, u, w, k, tmp, trial);
                 x.copy_from_slice(trial);
+                carry(x, disc);
                 left -= hi * left;
             }
             if left > 0.0 {
                 // more kinks in one step than cuts allowed: the rest in one step
                 rk4(plant, layout, x, left, u, w, k, tmp, trial);
                 x.copy_from_slice(trial);
+                carry(x, disc);
             }
         }
     }
@@ -410,11 +432,7 @@ impl Sim {
         let count = self.plant.sensor.count_rad();
         let mut pos = self.measured();
         let nb = self.layout.bodies;
-        let mut vel = self.x[nb]
-            - self
-                .plant
-                .frame
-                .map_or(0.0, |_| self.x[self.layout.frame + 1]);
+        let mut vel = self.x[nb];
         // the drive's current reading: the torque of the command in effect until now
         let mut tq = deriv(
             &self.plant,
@@ -490,7 +508,7 @@ pub struct Peaks {
 }
 
 /// The stiffest dynamics of `plant`: the highest eigenfrequency [rad/s] (bodies with every
-/// spring at its largest stiffness within `peaks`, and the filters', housing's and
+/// spring at its largest stiffness within `peaks`, and the filters' and
 /// sensor's own frequencies) and the fastest damping rate [1/s].
 pub fn stiffest(plant: &Plant, peaks: &Peaks) -> (f64, f64) {
     let nb = plant.bodies();
@@ -549,9 +567,6 @@ pub fn stiffest(plant: &Plant, peaks: &Peaks) -> (f64, f64) {
     }
     if let Some(s) = &plant.sensor.shaft {
         filter(s.frequency_hz, s.damping_ratio);
-    }
-    if let Some(f) = &plant.frame {
-        filter(f.frequency_hz, f.damping_ratio);
     }
     (w, rate)
 }

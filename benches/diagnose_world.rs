@@ -39,8 +39,9 @@ use flexid::diagnose::{diagnose, DiagnoseOptions};
 use flexid::recording::read_recording;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Mutex;
-use world::cases::{generate, read_truth, seed_of, Group, Spec, GROUPS};
-use world::scoring::{case_line, outcome, report, Outcome};
+use world::cases::{read_truth, seed_of, Group, Spec, GROUPS};
+use world::generate::generate;
+use world::scoring::{case_line, outcome, report, world_z2, Outcome};
 
 /// The development seed base.
 const DEV_SEED: u64 = 50_000;
@@ -60,32 +61,34 @@ fn run_case(spec: &Spec, dir: &std::path::Path, verbose: bool) -> Outcome {
     let masses = case.truth.masses;
     let paths = case.recordings.clone();
     drop(case);
+    let recordings: Result<Vec<_>, String> = paths
+        .iter()
+        .map(|p| read_recording(p).map_err(|e| e.to_string()))
+        .collect();
     let t = std::time::Instant::now();
     let c0 = thread_cpu_s();
-    let result = std::panic::catch_unwind(|| {
-        let recs = paths
-            .iter()
-            .map(read_recording)
-            .collect::<Result<Vec<_>, _>>()
-            .map_err(|e| e.to_string())?;
-        diagnose(
-            &recs,
-            &DiagnoseOptions {
-                masses,
-                cpu_clock: Some(flexid::rt::clock::thread_cpu_ns),
-                ..DiagnoseOptions::default()
-            },
-        )
-        .map_err(|e| e.to_string())
-    })
-    .unwrap_or_else(|p| {
-        let msg = p
-            .downcast_ref::<String>()
-            .cloned()
-            .or_else(|| p.downcast_ref::<&str>().map(|s| s.to_string()))
-            .unwrap_or_default();
-        Err(format!("panic: {msg}"))
-    });
+    let result = match &recordings {
+        Err(e) => Err(e.clone()),
+        Ok(recs) => std::panic::catch_unwind(|| {
+            diagnose(
+                recs,
+                &DiagnoseOptions {
+                    masses,
+                    cpu_clock: Some(flexid::rt::clock::thread_cpu_ns),
+                    ..DiagnoseOptions::default()
+                },
+            )
+            .map_err(|e| e.to_string())
+        })
+        .unwrap_or_else(|p| {
+            let msg = p
+                .downcast_ref::<String>()
+                .cloned()
+                .or_else(|| p.downcast_ref::<&str>().map(|s| s.to_string()))
+                .unwrap_or_default();
+            Err(format!("panic: {msg}"))
+        }),
+    };
     let cpu_s = thread_cpu_s() - c0;
     let wall_s = t.elapsed().as_secs_f64();
     // only now the truth
@@ -96,12 +99,15 @@ fn run_case(spec: &Spec, dir: &std::path::Path, verbose: bool) -> Outcome {
             println!("{}", flexid::report::diagnosis::render(d));
         }
     }
+    // a check of the world itself where the truth is the nominal chain (not timed)
+    let z2 = recordings.ok().and_then(|r| world_z2(&truth, &r));
     outcome(
         truth,
         result.as_ref().map_err(|e| e.clone()),
         cpu_s,
         wall_s,
         generate_s,
+        z2,
     )
 }
 

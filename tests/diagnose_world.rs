@@ -10,7 +10,8 @@ use flexid::model::{Chain, SampledChain};
 use flexid::Complex64;
 use world::analytic;
 use world::plant::{Coupling, Gravity, Law, LowPass, Notch, Plant, Resonator};
-use world::simulator::{stiffest, substeps, Peaks, Sim};
+use world::simulator::Sim;
+use world::substeps::{stiffest, substeps, Peaks};
 
 /// A 3-body chain with well damped couplings (3-4 %) and features between 40 and 300 Hz,
 /// so that a few periods settle it.
@@ -326,8 +327,9 @@ fn spec(
 /// E's variations measured with a multisine, at 1 kHz, position and velocity readings.
 #[test]
 fn a_case_without_effect_is_the_nominal_chain_within_its_own_noise() {
-    use world::cases::{measure, plan, Group};
+    use world::cases::Group;
     use world::excitation::Kind;
+    use world::generate::{measure, plan};
     let mut seen_velocity = false;
     for (group, class) in [
         (Group::A, "none"),
@@ -407,7 +409,8 @@ fn a_case_without_effect_is_the_nominal_chain_within_its_own_noise() {
 /// of each cause, at 1 kHz.
 #[test]
 fn each_cause_acts_in_its_declared_band() {
-    use world::cases::{peaks_of, plan, Group};
+    use world::cases::Group;
+    use world::generate::{peaks_of, plan};
     use world::visibility::{delta_of, simulated_response};
     for class in world::causes::CAUSES {
         let p = plan(&spec(Group::D, class, 0, Some(1000.0)));
@@ -454,7 +457,8 @@ fn each_cause_acts_in_its_declared_band() {
 /// each effect in groups A and B, at 1 kHz.
 #[test]
 fn effects_are_sized_to_their_visibility() {
-    use world::cases::{plan, Group};
+    use world::cases::Group;
+    use world::generate::plan;
     for class in world::effects::EFFECTS {
         let a = plan(&spec(Group::A, class, 0, Some(1000.0)));
         let s = &a.sizes[0];
@@ -511,7 +515,8 @@ fn effects_are_sized_to_their_visibility() {
 /// to 1 and 8 kHz.
 #[test]
 fn cases_are_reproducible_from_their_seeds() {
-    use world::cases::{generate, Group};
+    use world::cases::Group;
+    use world::generate::generate;
     let specs = [
         spec(Group::A, "backlash", 0, None),
         spec(Group::B, "time_delay", 0, None),

@@ -10,7 +10,7 @@
 //! small-signal part.
 
 use super::plant::{LowPass, Plant};
-use super::simulator::Peaks;
+use super::substeps::Peaks;
 use flexid::Complex64;
 
 fn jw(f_hz: f64) -> Complex64 {

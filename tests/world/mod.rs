@@ -5,14 +5,14 @@
 //!
 //! * [`plant`]: what an axis is made of (plain data, written whole into `truth.json`);
 //! * [`simulator`]: the fine-step RK4 simulation (no code shared with `flexid::plant`,
-//!   `flexid::sim` or the diagnosis's `nlsim`) and its sub-step count;
+//!   `flexid::sim` or the diagnosis's `nlsim`); [`substeps`]: its sub-step count;
 //! * [`analytic`]: the small-signal FRF from `(K - w^2 M + j w C)^-1` and the filters;
 //! * [`plants`]: random nominal chains; [`excitation`]: the excitation kinds;
 //! * [`effects`]: the library's effects; [`causes`]: causes outside it;
 //! * [`visibility`]: how clearly a change shows against the line noise, sizing, and
 //!   where a cause acts;
-//! * [`cases`]: groups, seeds and the generation of a case; [`scoring`]: the groups'
-//!   rules and tables.
+//! * [`cases`]: groups, seeds and the truth file; [`generate`]: a case from its seed;
+//!   [`scoring`]: the groups' rules and tables.
 #![allow(dead_code)]
 
 pub mod analytic;
@@ -20,8 +20,10 @@ pub mod cases;
 pub mod causes;
 pub mod effects;
 pub mod excitation;
+pub mod generate;
 pub mod plant;
 pub mod plants;
 pub mod scoring;
 pub mod simulator;
+pub mod substeps;
 pub mod visibility;

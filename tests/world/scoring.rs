@@ -26,6 +26,39 @@ pub struct Outcome {
     pub generate_s: f64,
     pub error: Option<String>,
     pub right: bool,
+    /// For a case without effect measured with a multisine: the mean `z^2` of flexid's
+    /// measured FRF against the world's exact response of the true plant ([`world_z2`]).
+    pub world_z2: Option<f64>,
+}
+
+/// A check of the world itself on a case without any effect, measured with a periodic
+/// multisine: the mean over the lines of both levels of `|H - H_true|^2 / var`, `H` and
+/// `var` flexid's periodic estimate of the recordings, `H_true` the world's exact sampled
+/// response of the true plant (alias sum). Noise alone gives about 1.3 (variances from 5
+/// periods); a world that disagreed with its own truth would give far more. `None` for
+/// other cases.
+pub fn world_z2(truth: &Truth, recs: &[flexid::recording::Recording]) -> Option<f64> {
+    use super::excitation::Kind;
+    let periodic = matches!(
+        truth.measurement.excitation.kind,
+        Kind::OddRandom | Kind::Schroeder | Kind::RandomPhase
+    );
+    if !truth.sizes.is_empty() || !periodic {
+        return None;
+    }
+    let (mut s, mut n) = (0.0, 0usize);
+    for rec in recs {
+        let e = flexid::analysis::estimate_frf(rec, None).ok()?;
+        for k in 0..e.frf.freq_hz.len() {
+            let (f, h, v) = (e.frf.freq_hz[k], e.frf.h[k], e.frf.var[k]);
+            if v.is_finite() && v > 0.0 {
+                let m = super::analytic::sampled_reading(&truth.plant, rec.sample_rate_hz, f, 100);
+                s += (h - m).norm_sqr() / v;
+                n += 1;
+            }
+        }
+    }
+    (n > 0).then(|| s / n as f64)
 }
 
 /// Whether two ranges `[lo, hi]` overlap.
@@ -55,6 +88,7 @@ pub fn outcome(
     cpu_s: f64,
     wall_s: f64,
     generate_s: f64,
+    world_z2: Option<f64>,
 ) -> Outcome {
     match d {
         Ok(d) => {
@@ -79,6 +113,7 @@ pub fn outcome(
                 generate_s,
                 error: None,
                 right: ok,
+                world_z2,
             }
         }
         Err(e) => Outcome {
@@ -93,6 +128,7 @@ pub fn outcome(
             generate_s,
             error: Some(e),
             right: false,
+            world_z2,
         },
     }
 }
@@ -144,6 +180,9 @@ pub fn case_line(o: &Outcome) -> String {
                 tb[1]
             );
         }
+    }
+    if let Some(z) = o.world_z2 {
+        let _ = write!(s, " [world z2 {z:.2}]");
     }
     let _ = write!(
         s,
@@ -308,6 +347,33 @@ pub fn report(outcomes: &[Outcome]) -> (String, bool) {
         );
         summary.push(format!("3-mass worst {x:.2} s one core"));
     }
+    for kind in super::excitation::KINDS {
+        let all: Vec<f64> = outcomes
+            .iter()
+            .filter(|o| o.truth.measurement.excitation.kind == kind)
+            .map(|o| o.cpu_s)
+            .collect();
+        let three: Vec<f64> = outcomes
+            .iter()
+            .filter(|o| o.truth.measurement.excitation.kind == kind && o.truth.masses == 3)
+            .map(|o| o.cpu_s)
+            .collect();
+        if let Some((m, x)) = median_max(&all) {
+            let t = median_max(&three)
+                .map_or("-".to_string(), |(m3, x3)| format!("{m3:.2} / {x3:.2} s"));
+            let samples: Vec<f64> = outcomes
+                .iter()
+                .filter(|o| o.truth.measurement.excitation.kind == kind)
+                .map(|o| o.truth.measurement.samples_per_level as f64)
+                .collect();
+            let (sm, sx) = median_max(&samples).unwrap_or((f64::NAN, f64::NAN));
+            let _ = writeln!(
+                s,
+                "  {:13} median {m:.2} s, max {x:.2} s; 3 masses {t} (samples per level median {sm:.0}, max {sx:.0})",
+                kind.name()
+            );
+        }
+    }
     let mut slow: Vec<&Outcome> = outcomes.iter().collect();
     slow.sort_by(|a, b| b.cpu_s.total_cmp(&a.cpu_s));
     for o in slow.iter().take(3) {
@@ -357,6 +423,14 @@ pub fn report(outcomes: &[Outcome]) -> (String, bool) {
         }
         .into()
     });
+    let z: Vec<f64> = outcomes.iter().filter_map(|o| o.world_z2).collect();
+    if let Some((m, x)) = median_max(&z) {
+        let _ = writeln!(
+            s,
+            "\nthe world against its own truth (cases without effect, multisines, {} cases): mean z2 of flexid's FRF against the true plant's exact response, median {m:.2}, max {x:.2} (noise alone: about 1.3)",
+            z.len()
+        );
+    }
     let errors = outcomes.iter().filter(|o| o.error.is_some()).count();
     let total_right = outcomes.iter().filter(|o| o.right).count();
     let _ = writeln!(

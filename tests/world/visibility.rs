@@ -19,7 +19,8 @@
 
 use super::analytic;
 use super::plant::{Output, Plant};
-use super::simulator::{substeps, Peaks, Sim};
+use super::simulator::Sim;
+use super::substeps::{substeps, Peaks};
 use flexid::excitation::{AmplitudeShape, MultisineDesign, PhaseDesign};
 use flexid::Complex64;
 use realfft::RealFftPlanner;

@@ -430,6 +430,21 @@ pub fn report(outcomes: &[Outcome]) -> (String, bool) {
             "\nthe world against its own truth (cases without effect, multisines, {} cases): mean z2 of flexid's FRF against the true plant's exact response, median {m:.2}, max {x:.2} (noise alone: about 1.3)",
             z.len()
         );
+        for o in outcomes
+            .iter()
+            .filter(|o| o.world_z2.is_some_and(|z| z > 2.0))
+        {
+            let _ = writeln!(
+                s,
+                "  beyond its noise: {} {} seed {} ({}-bit encoder): z2 {:.2}, verdict {}",
+                o.truth.group.name(),
+                o.truth.class,
+                o.truth.seed,
+                o.truth.measurement.encoder_bits,
+                o.world_z2.unwrap_or(f64::NAN),
+                o.verdict
+            );
+        }
     }
     let errors = outcomes.iter().filter(|o| o.error.is_some()).count();
     let total_right = outcomes.iter().filter(|o| o.right).count();

@@ -1,0 +1,414 @@
+//! The generation of one case from its seed alone: the world drawn (plant, measurement),
+//! every effect or cause sized and applied, the recordings simulated with noise and
+//! written with their sidecars, and `truth.json`.
+//!
+//! Every case draws its own world: 2, 3 or 4 bodies (4 in `four_masses`), 2 or 4 kHz,
+//! 0.5 or 1 Hz lines, an excitation kind, an encoder of 14-22 bits, a disturbance torque
+//! of 0.1-1 % of the low level's RMS (x1, or x3 in half the cases), viscous friction to the
+//! ground in two thirds of the axes, two levels 3-5x apart whose high one moves the motor at
+//! 0.3-3 rad/s RMS. An effect's or cause's full size is a typical one drawn from its
+//! physical range (see [`super::effects`], [`super::causes`]), enlarged where needed until
+//! its visibility beyond the nominal model ([`super::visibility`]: the RMS of the change
+//! no re-fitted nominal chain absorbs, in units of the line noise) reaches a target drawn
+//! log-uniform in 4 .. 10: clearly visible in every case. Group B applies a third of the
+//! full size.
+
+use super::analytic;
+use super::cases::{Case, Group, Measurement, Sizing, Spec, Truth};
+use super::causes::cause;
+use super::effects::{effect, Context, Knob};
+use super::excitation::{Design, Kind, KINDS};
+use super::plant::{Output, Plant};
+use super::plants::{motor_viscous, random_chain};
+use super::simulator::Sim;
+use super::substeps::{substeps, Peaks};
+use super::visibility::{
+    acting_band, delta_linear, delta_of, sigma_ln, simulated_response, size_for, visibility,
+    Projector, Reference,
+};
+use flexid::model::Chain;
+use flexid::recording::{write_recording, Recording, Sidecar};
+use rand::{Rng, SeedableRng};
+use std::path::Path;
+
+fn log_uniform(rng: &mut impl Rng, lo: f64, hi: f64) -> f64 {
+    rng.random_range(lo.ln()..hi.ln()).exp()
+}
+
+/// The world of a case before any effect: plant, measurement and sizing context.
+struct World {
+    plant: Plant,
+    chain: Chain,
+    viscous: f64,
+    design: Design,
+    ctx: Context,
+    noise_factor: f64,
+}
+
+fn draw_world(spec: &Spec, rng: &mut impl Rng) -> World {
+    let var = if spec.group == Group::E {
+        spec.class
+    } else {
+        ""
+    };
+    let fs = spec.fs_hz.unwrap_or(if var == "fs_4khz" {
+        4000.0
+    } else {
+        [2000.0, 4000.0][rng.random_range(0..2usize)]
+    });
+    let n = if var == "four_masses" {
+        4
+    } else {
+        rng.random_range(2..=4usize)
+    };
+    let df = [0.5, 1.0][rng.random_range(0..2usize)];
+    let f_lo = df * rng.random_range(1..=2u32) as f64;
+    let band = [f_lo, 0.4 * fs];
+    let chain = random_chain(rng, n, (6.0 * df).max(3.0), 0.3 * fs, 4.0 * df);
+    let viscous = if var == "no_viscous" {
+        0.0
+    } else {
+        motor_viscous(rng, &chain)
+    };
+    let kind = match var {
+        "schroeder" => Kind::Schroeder,
+        "random_phase" => Kind::RandomPhase,
+        "swept_sine" => Kind::SweptSine,
+        "stepped_sine" => Kind::SteppedSine,
+        _ => KINDS[rng.random_range(0..KINDS.len())],
+    };
+    let design = Design {
+        kind,
+        fs_hz: fs,
+        line_spacing_hz: df,
+        band_hz: band,
+        periods: 5,
+        transient_periods: 2,
+        phase_seed: rng.random(),
+        odd_group: rng.random_range(3..=4usize),
+        stepped_spots: 40,
+    };
+    let bits = if var == "encoder_14bit" {
+        14
+    } else {
+        rng.random_range(14..=22u32)
+    };
+    let noise_factor = if var == "noise_x3" || rng.random_bool(0.5) {
+        3.0
+    } else {
+        1.0
+    };
+    let mut plant = Plant::nominal(&chain, viscous, bits);
+    if var == "velocity_output" {
+        plant.sensor.output = Output::Velocity;
+    }
+    // levels: the high one moves the motor at 0.3-3 rad/s RMS, the low one 3-5x below
+    let grid = design.grid_hz();
+    let v_high = log_uniform(rng, 0.3, 3.0);
+    let rms_high = v_high / analytic::rms_velocity(&plant, &grid, 1.0);
+    let rms_low = rms_high / rng.random_range(3.0..5.0);
+    let levels = vec![rms_low, rms_high];
+    plant.torque_noise_nm = noise_factor * log_uniform(rng, 1e-3, 1e-2) * rms_low;
+    plant.sensor.current_noise_nm = 2e-3 * rms_low;
+    let reference = Reference {
+        fs_hz: fs,
+        lines_hz: grid.clone(),
+        period_samples: design.period_samples(),
+        periods: design.periods,
+        levels_rms_nm: levels.clone(),
+        phase_seed: rng.random(),
+    };
+    let motion = levels
+        .iter()
+        .map(|&r| analytic::rms_motion(&plant, &grid, r))
+        .collect();
+    let velocity = levels
+        .iter()
+        .map(|&r| analytic::rms_velocity(&plant, &grid, r))
+        .collect();
+    let ctx = Context {
+        nominal: plant.clone(),
+        fs_hz: fs,
+        band_hz: band,
+        reference,
+        motion,
+        velocity_rms_rad_s: velocity,
+    };
+    World {
+        plant,
+        chain,
+        viscous,
+        design,
+        ctx,
+        noise_factor,
+    }
+}
+
+/// Peaks for the sub-step count: 6x the small-signal RMS at the high level.
+pub fn peaks_of(plant: &Plant, ctx: &Context) -> Peaks {
+    let r = analytic::rms_motion(
+        plant,
+        &ctx.reference.lines_hz,
+        ctx.reference.levels_rms_nm[ctx.high()],
+    );
+    Peaks {
+        deflection_rad: r.deflection_rad.iter().map(|x| 6.0 * x).collect(),
+        position_rad: r.position_rad.iter().map(|x| 6.0 * x).collect(),
+    }
+}
+
+/// Visibility of `plant` against the nominal axis (simulated unless `linear`), and the
+/// change per line and level.
+struct Judge<'a> {
+    ctx: &'a Context,
+    sigma: Vec<Vec<f64>>,
+    projector: Projector,
+    nominal_sim: std::cell::OnceCell<Vec<Vec<flexid::Complex64>>>,
+}
+
+impl<'a> Judge<'a> {
+    fn new(ctx: &'a Context) -> Self {
+        let sigma = sigma_ln(&ctx.nominal, &ctx.reference);
+        Judge {
+            ctx,
+            projector: Projector::new(&ctx.nominal, &ctx.reference, sigma.clone()),
+            sigma,
+            nominal_sim: std::cell::OnceCell::new(),
+        }
+    }
+
+    fn delta(&self, plant: &Plant, linear: bool) -> Vec<Vec<flexid::Complex64>> {
+        let r = &self.ctx.reference;
+        if linear {
+            return delta_linear(&self.ctx.nominal, plant, r);
+        }
+        let nominal = self.nominal_sim.get_or_init(|| {
+            simulated_response(&self.ctx.nominal, r, &peaks_of(&self.ctx.nominal, self.ctx))
+        });
+        let with = simulated_response(plant, r, &peaks_of(plant, self.ctx));
+        delta_of(nominal, &with)
+    }
+
+    /// Visibility beyond the nominal model (what no re-fitted nominal chain absorbs), and
+    /// against the true nominal chain.
+    fn visibility(&self, plant: &Plant, linear: bool) -> (f64, f64) {
+        self.visibility_of(&self.delta(plant, linear))
+    }
+
+    fn visibility_of(&self, delta: &[Vec<flexid::Complex64>]) -> (f64, f64) {
+        (
+            visibility(&self.projector.residual(delta), &self.sigma),
+            visibility(delta, &self.sigma),
+        )
+    }
+}
+
+/// The full size of `knob` alone on the nominal axis: a typical size `drawn`, enlarged
+/// until its visibility beyond the nominal model reaches `target` where it falls short.
+/// Returns the size, its visibility, and the drawn size's visibility.
+fn full_size(knob: &Knob, judge: &Judge, drawn: f64, target: f64) -> (f64, f64, f64) {
+    let vis = |s: f64| {
+        let mut p = judge.ctx.nominal.clone();
+        knob.apply(&mut p, s);
+        judge.visibility(&p, knob.linear).0
+    };
+    let v_drawn = vis(drawn);
+    if v_drawn >= target {
+        return (drawn, v_drawn, v_drawn);
+    }
+    let (s, v) = size_for(target, drawn, knob.range[1], 2.0 * drawn, vis);
+    (s, v, v_drawn)
+}
+
+/// A case planned: the world drawn, every effect sized and applied, the truth known; not
+/// yet measured.
+pub struct Plan {
+    pub spec: Spec,
+    pub design: Design,
+    pub ctx: Context,
+    /// The axis with everything added.
+    pub plant: Plant,
+    pub chain: Chain,
+    pub viscous: f64,
+    pub noise_factor: f64,
+    pub sizes: Vec<Sizing>,
+    /// The right answers (see [`Truth`]).
+    pub effects: Vec<String>,
+    pub band_hz: Option<[f64; 2]>,
+    pub visibility: f64,
+    pub visibility_true_chain: f64,
+}
+
+/// Draw the world of `spec` and size its effects (no recording yet).
+pub fn plan(spec: &Spec) -> Plan {
+    let mut rng = rand::rngs::StdRng::seed_from_u64(spec.seed ^ 0x3017_d1a6_0a1d);
+    let world = draw_world(spec, &mut rng);
+    let ctx = &world.ctx;
+    let judge = Judge::new(ctx);
+    let names: Vec<&str> = match spec.group {
+        Group::A if spec.class == "none" => vec![],
+        Group::A | Group::B | Group::D => vec![spec.class],
+        Group::C => spec.class.split('+').collect(),
+        Group::E => vec![],
+    };
+    let knobs: Vec<Knob> = names
+        .iter()
+        .map(|c| {
+            if spec.group == Group::D {
+                cause(c, ctx, &mut rng)
+            } else {
+                effect(c, ctx, &mut rng)
+            }
+        })
+        .collect();
+    let mut plant = world.plant.clone();
+    let mut sizes = Vec::new();
+    for k in &knobs {
+        let target = log_uniform(&mut rng, 4.0, 10.0);
+        let drawn = log_uniform(&mut rng, k.typical[0], k.typical[1]);
+        let (full, v_full, v_drawn) = full_size(k, &judge, drawn, target);
+        let size = if spec.group == Group::B {
+            full / 3.0
+        } else {
+            full
+        };
+        let mut p = ctx.nominal.clone();
+        k.apply(&mut p, size);
+        let (v, v_true) = judge.visibility(&p, k.linear);
+        k.apply(&mut plant, size);
+        sizes.push(Sizing {
+            class: k.class.into(),
+            answer: k.answer.into(),
+            size_name: k.size_name.into(),
+            typical_size: drawn,
+            typical_visibility: v_drawn,
+            full_size: full,
+            full_visibility: v_full,
+            target_visibility: target,
+            size,
+            visibility: v,
+            visibility_true_chain: v_true,
+            shape: k.shape.clone(),
+        });
+    }
+    let linear = knobs.iter().all(|k| k.linear);
+    let ((visibility_all, visibility_true), band_hz) = if knobs.is_empty() {
+        ((0.0, 0.0), None)
+    } else {
+        let delta = judge.delta(&plant, linear);
+        let band = (spec.group == Group::D)
+            .then(|| acting_band(&delta, &ctx.reference.lines_hz))
+            .flatten();
+        (judge.visibility_of(&delta), band)
+    };
+    let effects: Vec<String> = knobs
+        .iter()
+        .filter(|k| k.answer != "unexplained")
+        .map(|k| k.answer.to_string())
+        .collect();
+    Plan {
+        spec: spec.clone(),
+        design: world.design.clone(),
+        ctx: world.ctx.clone(),
+        plant,
+        chain: world.chain.clone(),
+        viscous: world.viscous,
+        noise_factor: world.noise_factor,
+        sizes,
+        effects,
+        band_hz,
+        visibility: visibility_all,
+        visibility_true_chain: visibility_true,
+    }
+}
+
+/// Generate `spec` into `dir` (created): two recordings `level0.csv`, `level1.csv` (low,
+/// high) with their sidecars, and `truth.json`.
+pub fn generate(spec: &Spec, dir: &Path) -> Case {
+    measure(plan(spec), dir)
+}
+
+/// Measure a planned case at both levels (with noise drawn from its seed) into `dir`.
+pub fn measure(plan: Plan, dir: &Path) -> Case {
+    std::fs::create_dir_all(dir).unwrap();
+    let (ctx, plant, spec) = (&plan.ctx, &plan.plant, &plan.spec);
+    let steps = substeps(plant, ctx.fs_hz, &peaks_of(plant, ctx));
+    let mut recordings = Vec::new();
+    let mut samples = 0;
+    for (i, &rms) in ctx.reference.levels_rms_nm.iter().enumerate() {
+        let (u, info) = plan.design.generate(rms);
+        samples = u.len();
+        let seed = spec.seed.wrapping_mul(10) + i as u64;
+        let mut sim = Sim::new(plant, ctx.fs_hz, steps, seed, false);
+        // centred on a period of a periodic excitation, else on the whole record
+        let period = match info.period_samples {
+            0 => u.len(),
+            n => n.min(u.len()),
+        };
+        sim.start_centred(&u[..period]);
+        let out = sim.run(&u);
+        let fs = ctx.fs_hz;
+        let velocity = plant.sensor.output == Output::Velocity;
+        let rec = Recording {
+            time_s: (0..u.len()).map(|k| k as f64 / fs).collect(),
+            position_rad: (!velocity).then(|| out.iter().map(|s| s.position_rad).collect()),
+            velocity_rad_s: velocity.then(|| out.iter().map(|s| s.velocity_rad_s).collect()),
+            acceleration_rad_s2: None,
+            torque_actual_nm: Some(out.iter().map(|s| s.torque_actual_nm).collect()),
+            torque_cmd_nm: u,
+            sample_rate_hz: fs,
+            sidecar: Sidecar {
+                sample_rate_hz: Some(fs),
+                excitation: Some(info),
+                ..Sidecar::default()
+            },
+        };
+        let p = dir.join(format!("level{i}.csv"));
+        write_recording(&p, &rec).unwrap();
+        recordings.push(p);
+    }
+    let verdict = match spec.group {
+        Group::A | Group::B => Some(
+            plan.effects
+                .first()
+                .cloned()
+                .unwrap_or_else(|| "none".into()),
+        ),
+        Group::C => None,
+        Group::D => Some("unexplained".into()),
+        Group::E => Some("none".into()),
+    };
+    let truth = Truth {
+        group: spec.group,
+        class: spec.class.into(),
+        seed: spec.seed,
+        masses: plan.chain.masses(),
+        effects: plan.effects.clone(),
+        verdict,
+        band_hz: plan.band_hz,
+        sizes: plan.sizes.clone(),
+        visibility: plan.visibility,
+        visibility_true_chain: plan.visibility_true_chain,
+        measurement: Measurement {
+            fs_hz: ctx.fs_hz,
+            excitation: plan.design.clone(),
+            levels_rms_nm: ctx.reference.levels_rms_nm.clone(),
+            encoder_bits: plant.sensor.encoder_bits,
+            torque_noise_nm: plant.torque_noise_nm,
+            noise_factor: plan.noise_factor,
+            output: plant.sensor.output,
+            substeps: steps,
+            samples_per_level: samples,
+        },
+        nominal_chain: plan.chain.clone(),
+        nominal_motor_viscous_nms_per_rad: plan.viscous,
+        plant: plan.plant.clone(),
+    };
+    let truth_path = dir.join("truth.json");
+    std::fs::write(&truth_path, serde_json::to_string_pretty(&truth).unwrap()).unwrap();
+    Case {
+        recordings,
+        truth_path,
+        truth,
+    }
+}

@@ -133,6 +133,31 @@ pub fn outcome(
     }
 }
 
+/// The share of the excited band (in log frequency) that `bands` cover together: 1 when
+/// they shade the whole spectrum, which points at nothing.
+pub fn coverage(bands: &[[f64; 2]], band_hz: [f64; 2]) -> f64 {
+    let (lo, hi) = (band_hz[0].max(1e-9).ln(), band_hz[1].max(1e-9).ln());
+    let mut v: Vec<(f64, f64)> = bands
+        .iter()
+        .map(|b| (b[0].max(1e-9).ln().max(lo), b[1].max(1e-9).ln().min(hi)))
+        .filter(|(a, b)| b >= a)
+        .collect();
+    v.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let (mut total, mut end) = (0.0, f64::NEG_INFINITY);
+    for (a, b) in v {
+        let a = a.max(end);
+        if b > a {
+            total += b - a;
+        }
+        end = end.max(b);
+    }
+    if hi > lo {
+        total / (hi - lo)
+    } else {
+        0.0
+    }
+}
+
 /// One line per case.
 pub fn case_line(o: &Outcome) -> String {
     let t = &o.truth;
@@ -271,6 +296,27 @@ pub fn report(outcomes: &[Outcome]) -> (String, bool) {
                 "  {r:>2}/{:<2}   {vm:13.1}   {cm:.2} / {cx:.2}",
                 rows.len()
             );
+        }
+        if g == Group::D {
+            // the rule is an overlap; bands that shade the whole spectrum overlap anything
+            let cov: Vec<f64> = os
+                .iter()
+                .map(|o| coverage(&o.bands_hz, o.truth.measurement.excitation.band_hz))
+                .collect();
+            let narrow = os
+                .iter()
+                .zip(&cov)
+                .filter(|(o, c)| o.right && **c < 0.5)
+                .count();
+            if let Some((m, x)) = median_max(&cov) {
+                let _ = writeln!(
+                    s,
+                    "the diagnosis's bands cover a median {:.0} % (max {:.0} %) of the excited band (log frequency); right with bands covering under half of it: {narrow}/{}",
+                    100.0 * m,
+                    100.0 * x,
+                    os.len()
+                );
+            }
         }
         let _ = writeln!(
             s,

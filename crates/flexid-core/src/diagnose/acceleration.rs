@@ -1,19 +1,22 @@
 //! Recordings whose response is an acceleration (accelerometers: the F-16 ground vibration
-//! test) as position recordings: the acceleration divided by `(j w)²` line by line over the
-//! whole record, so that the nominal chain's identification, the simulated candidates and
-//! the estimator see a position like any other recording. Below the lowest excited line the
-//! division only amplifies noise and drift (`1/w²`); those lines are set to zero and said
-//! so in the recording's source.
+//! test) or a velocity alone (the drive's velocity estimate) as position recordings: the
+//! response divided by `(j w)²` or `j w` line by line over the whole record, so that the
+//! nominal chain's identification, the simulated candidates and the estimator see a
+//! position like any other recording. Below the lowest excited line the division only
+//! amplifies noise and drift; those lines are set to zero and said so in the recording's
+//! source.
 
 use crate::recording::{MotionSignal, Recording};
 use num_complex::Complex64;
 use realfft::RealFftPlanner;
 
-/// `rec` with its acceleration replaced by the position it integrates to (the recording
-/// itself when its response is not an acceleration).
+/// `rec` with its acceleration or velocity replaced by the position it integrates to (the
+/// recording itself when it has a position).
 pub fn as_position(rec: &Recording) -> Recording {
-    let Some((MotionSignal::Acceleration, a)) = rec.preferred_motion() else {
-        return rec.clone();
+    let (order, a) = match rec.preferred_motion() {
+        Some((MotionSignal::Acceleration, a)) => (2, a),
+        Some((MotionSignal::Velocity, v)) => (1, v),
+        _ => return rec.clone(),
     };
     let n = a.len();
     if n < 4 {
@@ -42,9 +45,8 @@ pub fn as_position(rec: &Recording) -> Recording {
         if f < lowest_hz - 0.5 * df {
             *x = Complex64::new(0.0, 0.0);
         } else {
-            let w = 2.0 * std::f64::consts::PI * f;
-            // 1/(j w)² = -1/w²
-            *x *= -1.0 / (w * w);
+            let jw = Complex64::new(0.0, 2.0 * std::f64::consts::PI * f);
+            *x /= jw.powi(order);
         }
     }
     // the inverse of a real signal's spectrum: the Nyquist line must be real
@@ -62,9 +64,12 @@ pub fn as_position(rec: &Recording) -> Recording {
     }
     let mut out = rec.clone();
     out.acceleration_rad_s2 = None;
+    out.velocity_rad_s = None;
     out.position_rad = Some(pos);
     let note = format!(
-        "position from the acceleration divided by (j w)^2 over the whole record; lines below {lowest_hz:.4} Hz (the lowest excited) set to zero"
+        "position from the {} divided by (j w){} over the whole record; lines below {lowest_hz:.4} Hz (the lowest excited) set to zero",
+        if order == 2 { "acceleration" } else { "velocity" },
+        if order == 2 { "^2" } else { "" }
     );
     out.sidecar.source = Some(match &rec.sidecar.source {
         Some(s) => format!("{s}; {note}"),
@@ -125,6 +130,29 @@ mod tests {
         // a position recording is left alone
         let same = as_position(&out_position(&rec, p));
         assert_eq!(same.position_rad.as_deref(), Some(&p[..]));
+        // a velocity alone integrates once: v = dx/dt
+        let vel = |t: f64| {
+            lines
+                .iter()
+                .map(|&(k, amp, ph)| {
+                    let w = 2.0 * std::f64::consts::PI * k as f64 * fs / n as f64;
+                    w * amp * (w * t + ph).cos()
+                })
+                .sum::<f64>()
+        };
+        let v_rec = Recording {
+            acceleration_rad_s2: None,
+            velocity_rad_s: Some(t.iter().map(|&t| vel(t)).collect()),
+            ..rec.clone()
+        };
+        let out = as_position(&v_rec);
+        let err = t
+            .iter()
+            .zip(out.position_rad.as_ref().unwrap())
+            .map(|(&t, p)| (x(t) - p).abs())
+            .fold(0.0, f64::max);
+        assert!(err < 1e-9, "velocity: max error {err}");
+        assert!(out.velocity_rad_s.is_none());
     }
 
     fn out_position(rec: &Recording, p: &[f64]) -> Recording {

@@ -448,7 +448,7 @@ pub fn diagnose(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Diagnosis,
         d.stage_cpu_s = stage.stages;
         return Ok(d);
     }
-    // an acceleration response is diagnosed as the position it integrates to
+    // an acceleration or velocity response is diagnosed as the position it integrates to
     let recs: Vec<Recording> = recs.iter().map(acceleration::as_position).collect();
     let data = prepare(&recs, opts)?;
     stage.lap("prepare");

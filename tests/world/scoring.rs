@@ -17,7 +17,7 @@ pub struct Outcome {
     pub effects: Vec<String>,
     pub before_db: f64,
     pub after_db: f64,
-    /// The localised bands `[lo, hi]` [Hz] (`gap.bands`).
+    /// The cores of the localised bands `[core_lo, core_hi]` [Hz] (`gap.bands`).
     pub bands_hz: Vec<[f64; 2]>,
     /// One-core (thread CPU) and wall time of the diagnosis [s].
     pub cpu_s: f64,
@@ -67,7 +67,9 @@ pub fn overlaps(a: [f64; 2], b: [f64; 2]) -> bool {
 }
 
 /// The group's rule: A, B and E the verdict; C both effects among those named; D
-/// `unexplained` with a band overlapping where the cause acts.
+/// `unexplained` with a band overlapping where the cause acts (`bands`: the cores of the
+/// diagnosis's bands, where the error is at least half its largest: a band whose
+/// significant range shades the whole spectrum overlaps any cause and points at none).
 pub fn right(truth: &Truth, verdict: &str, effects: &[String], bands: &[[f64; 2]]) -> bool {
     match truth.group {
         Group::A | Group::B | Group::E => truth.verdict.as_deref() == Some(verdict),
@@ -98,7 +100,7 @@ pub fn outcome(
                 .gap
                 .bands
                 .iter()
-                .map(|(b, _)| [b.lo_hz, b.hi_hz])
+                .map(|(b, _)| [b.core_lo_hz, b.core_hi_hz])
                 .collect();
             let ok = right(&truth, &verdict, &effects, &bands);
             Outcome {
@@ -298,7 +300,7 @@ pub fn report(outcomes: &[Outcome]) -> (String, bool) {
             );
         }
         if g == Group::D {
-            // the rule is an overlap; bands that shade the whole spectrum overlap anything
+            // the rule is an overlap of the bands' cores; how much of the band they cover
             let cov: Vec<f64> = os
                 .iter()
                 .map(|o| coverage(&o.bands_hz, o.truth.measurement.excitation.band_hz))

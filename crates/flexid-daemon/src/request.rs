@@ -321,6 +321,7 @@ pub fn plan(
                 peak_nm: Some(flexid_core::excitation::peak_abs(&p)),
                 rms_nm: Some(flexid_core::excitation::rms(&p)),
                 design: Some("periodic_log_sweep".into()),
+                blocks: Vec::new(),
             };
             (p, info)
         }

@@ -17,7 +17,7 @@ pub struct EstimatedFrf {
     pub frf: Frf,
     /// Levels at the non-excited lines (periodic excitation only).
     pub nonexcited: Option<NonExcitedLevels>,
-    /// "periodic" or "welch_h1".
+    /// "periodic", "stepped" or "welch_h1".
     pub method: &'static str,
     /// The motion signal used.
     pub motion: MotionSignal,
@@ -38,11 +38,22 @@ pub fn periodic_excitation(rec: &Recording) -> Option<&crate::excitation::Excita
     })
 }
 
+/// The dwell blocks of a stepped-sine recording whose description carries them.
+fn stepped_blocks(rec: &Recording) -> Option<&[crate::excitation::SteppedBlock]> {
+    rec.sidecar
+        .excitation
+        .as_ref()
+        .filter(|e| e.kind == ExcitationKind::SteppedSine && e.period_samples == 0)
+        .map(|e| e.blocks.as_slice())
+        .filter(|b| !b.is_empty())
+}
+
 /// Estimate the torque -> motion FRF of a recording.
 ///
 /// Position is differenced to velocity (never `j w` times the DFT of a drifting position);
-/// periodic excitation uses the per-line periodic estimator with its variance, anything else
-/// the Welch H1 estimator with coherence. The result is limited to the excited band, or to
+/// periodic excitation uses the per-line periodic estimator with its variance, a stepped
+/// sine with its blocks the same estimator block by block, anything else the Welch H1
+/// estimator with coherence. The result is limited to the excited band, or to
 /// `band_hz` when given.
 pub fn estimate_frf(
     rec: &Recording,
@@ -59,13 +70,38 @@ pub fn estimate_frf(
         MotionSignal::Acceleration => (signal.to_vec(), FrfKind::Other),
     };
     let u = &rec.torque_cmd_nm;
+    // an encoder's counts: their repeating error is part of each line's variance
+    let quantum = match motion {
+        MotionSignal::Position | MotionSignal::Velocity => frf::quantisation::grid_step(signal),
+        MotionSignal::Acceleration => None,
+    };
+    let grid_words = quantum.map_or(String::new(), |q| {
+        format!("; the motion lies on a grid of {q:.4e} (an encoder count), whose repeating error is added to each line's variance")
+    });
     let periodic = periodic_excitation(rec);
-    let mut out = if let Some(info) = periodic {
-        let mut est = frf::PeriodicEstimator::from_info(info, fs, kind)?;
+    let stepped = stepped_blocks(rec);
+    let mut out = if let Some(blocks) = stepped {
+        let frf = frf::estimate_stepped(blocks, u, &y, fs, kind, quantum)?;
+        let periods = blocks.iter().map(|b| b.periods).min().unwrap_or(0);
+        let choices = format!(
+            "FRF: stepped sine, each of the {} dwell blocks its own periodic experiment (its settle periods dropped, at least {periods} steady periods averaged, no window), one line per block, line variance from the period-to-period scatter{grid_words}{}",
+            blocks.len(),
+            motion_words(motion)
+        );
+        EstimatedFrf {
+            frf,
+            nonexcited: None,
+            averages: periods,
+            method: "stepped",
+            motion,
+            choices,
+        }
+    } else if let Some(info) = periodic {
+        let mut est = frf::PeriodicEstimator::from_info(info, fs, kind)?.with_quantum(quantum);
         est.push(u, &y)?;
         let frf = est.estimate()?;
         let choices = format!(
-            "FRF: periodic estimator, {} steady periods of {} samples averaged ({:.4} Hz lines, no window: the excitation is periodic), line variance from the period-to-period scatter{}",
+            "FRF: periodic estimator, {} steady periods of {} samples averaged ({:.4} Hz lines, no window: the excitation is periodic), line variance from the period-to-period scatter{grid_words}{}",
             est.periods_done(),
             info.period_samples,
             fs / info.period_samples as f64,

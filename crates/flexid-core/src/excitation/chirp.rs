@@ -185,6 +185,7 @@ impl Chirp {
             peak_nm: Some(self.peak_nm()),
             rms_nm: Some(self.rms_nm()),
             design: Some("log_sweep".to_string()),
+            blocks: Vec::new(),
         }
     }
 }

@@ -49,4 +49,9 @@ pub struct ExcitationInfo {
     /// Free-form design name, e.g. "schroeder", "random_phase", "odd_random_phase".
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub design: Option<String>,
+    /// The dwell blocks of a stepped sine over the whole record (`period_samples = 0`):
+    /// with them each block is estimated as its own periodic experiment, one line each
+    /// ([`crate::frf::estimate_stepped`]). Empty for every other kind.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub blocks: Vec<super::SteppedBlock>,
 }

@@ -303,6 +303,7 @@ impl Multisine {
             peak_nm: Some(self.peak_nm()),
             rms_nm: Some(self.rms_nm()),
             design: Some(self.design.clone()),
+            blocks: Vec::new(),
         }
     }
 }

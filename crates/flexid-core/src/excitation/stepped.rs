@@ -176,6 +176,7 @@ impl SteppedBlock {
             peak_nm: Some(self.peak_nm),
             rms_nm: Some(self.rms_nm),
             design: Some("stepped_sine".to_string()),
+            blocks: Vec::new(),
         }
     }
 }
@@ -203,7 +204,8 @@ impl SteppedSine {
 
     /// Description of the whole record: kind SteppedSine, not one period
     /// (`period_samples = 0`), band `[lowest, highest]` played frequency, overall peak and
-    /// RMS. Per-block periodic descriptions are in [`SteppedSine::infos`].
+    /// RMS, and the blocks (so that each is estimated on its own). Per-block periodic
+    /// descriptions are in [`SteppedSine::infos`].
     pub fn info(&self) -> ExcitationInfo {
         let lo = self
             .blocks
@@ -225,6 +227,7 @@ impl SteppedSine {
             peak_nm: Some(peak_abs(&self.signal)),
             rms_nm: Some(rms(&self.signal)),
             design: Some("stepped_sine".to_string()),
+            blocks: self.blocks.clone(),
         }
     }
 

@@ -8,6 +8,8 @@
 //!   averaging over steady periods with the errors-in-variables variance, levels at
 //!   non-excited lines ([`NonExcitedLevels`]) to detect nonlinear distortion; a velocity
 //!   response is freed of the ramp of a constant acceleration (`ramp.rs`).
+//! * [`estimate_stepped`]: stepped sine, one line per dwell block by the periodic
+//!   estimator.
 //! * [`WelchH1`] / [`welch_h1`]: arbitrary excitation, Welch-averaged H1 with coherence.
 //! * [`differenced_velocity`], [`difference_quotient_response`], [`remove_linear_trend`]:
 //!   turning drifting encoder position into something an FRF can be taken from.
@@ -16,7 +18,9 @@
 
 mod error;
 mod periodic;
+pub mod quantisation;
 mod ramp;
+mod stepped;
 mod support;
 #[cfg(test)]
 mod testutil;
@@ -28,6 +32,7 @@ pub use error::FrfError;
 pub use periodic::{
     estimate_periodic, NonExcitedLevels, PeriodicEstimator, DEFAULT_INFER_THRESHOLD,
 };
+pub use stepped::estimate_stepped;
 pub use support::{supported_band, SupportedBand};
 pub use types::{Frf, FrfKind};
 pub use velocity::{

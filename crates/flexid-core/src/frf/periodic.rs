@@ -85,6 +85,9 @@ pub struct PeriodicEstimator {
     /// Sorted, deduplicated excited lines; empty = infer from the input spectrum.
     lines: Vec<usize>,
     infer_threshold: f64,
+    /// Grid step of the recorded motion signal (an encoder count), when known: its
+    /// repeating error is added to each line's variance ([`super::quantisation`]).
+    quantum: Option<f64>,
     fft: Arc<dyn RealToComplex<f64>>,
     buf_u: Vec<f64>,
     buf_y: Vec<f64>,
@@ -158,6 +161,7 @@ impl PeriodicEstimator {
             transient_periods: 0,
             lines,
             infer_threshold: DEFAULT_INFER_THRESHOLD,
+            quantum: None,
             fft,
             buf_u: vec![0.0; period_samples],
             buf_y: vec![0.0; period_samples],
@@ -190,6 +194,15 @@ impl PeriodicEstimator {
     /// Discard the first `periods` periods (transient). Set before the first `push`.
     pub fn with_transient_periods(mut self, periods: usize) -> Self {
         self.transient_periods = periods;
+        self
+    }
+
+    /// The grid step of the recorded motion signal (for a differenced velocity, of the
+    /// position) in its own units, e.g. `2 pi / counts per revolution` \[rad\]: each line's
+    /// variance gets the quantisation floor of [`super::quantisation::line_variance`].
+    /// `None` (the default) adds nothing.
+    pub fn with_quantum(mut self, step: Option<f64>) -> Self {
+        self.quantum = step.filter(|q| q.is_finite() && *q > 0.0);
         self
     }
 
@@ -369,10 +382,20 @@ impl PeriodicEstimator {
                 let (su, sy, syu) = (s.m2u / d, s.m2y / d, s.m2yu / d);
                 let v =
                     (sy + h.norm_sqr() * su - 2.0 * (h.conj() * syu).re) / (pf * s.mu.norm_sqr());
+                let floor = self.quantum.map_or(0.0, |q| {
+                    super::quantisation::line_variance(
+                        q,
+                        self.kind,
+                        k as f64 * df,
+                        self.fs,
+                        self.n,
+                        s.mu,
+                    )
+                });
                 if v.is_nan() {
                     f64::INFINITY
                 } else {
-                    v.max(0.0)
+                    v.max(0.0) + floor
                 }
             };
             frf.freq_hz.push(k as f64 * df);
@@ -482,6 +505,7 @@ mod tests {
             peak_nm: None,
             rms_nm: None,
             design: None,
+            blocks: Vec::new(),
         }
     }
 

@@ -169,6 +169,7 @@ pub fn infer_excitation(torque_nm: &[f64], sample_rate_hz: f64) -> ExcitationInf
         peak_nm: Some(peak),
         rms_nm: Some(rms(torque_nm)),
         design: None,
+        blocks: Vec::new(),
     };
     let Some(per) = find_period(torque_nm) else {
         return other;
@@ -198,6 +199,7 @@ pub fn infer_excitation(torque_nm: &[f64], sample_rate_hz: f64) -> ExcitationInf
         peak_nm: Some(peak),
         rms_nm: Some(rms(&torque_nm[transient * p..total * p])),
         design: None,
+        blocks: Vec::new(),
     }
 }
 

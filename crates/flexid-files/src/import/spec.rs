@@ -233,6 +233,7 @@ pub(crate) fn build_recording(
                 peak_nm: Some(steady.iter().fold(0.0, |m, v| f64::max(m, v.abs()))),
                 rms_nm: Some(rms(steady)),
                 design: spec.design.clone(),
+                blocks: Vec::new(),
             })
         }
         None => {
@@ -247,6 +248,7 @@ pub(crate) fn build_recording(
                 peak_nm: Some(input.iter().fold(0.0, |m, v| f64::max(m, v.abs()))),
                 rms_nm: Some(rms(&input)),
                 design: spec.design.clone(),
+                blocks: Vec::new(),
             })
         }
     };

@@ -73,6 +73,7 @@ fn round_trip_is_bit_identical() {
                 peak_nm: Some(0.1),
                 rms_nm: None,
                 design: Some("test".into()),
+                blocks: Vec::new(),
             }),
             source: Some("unit test, with \"quotes\"".into()),
             io_delay_samples: Some(1),

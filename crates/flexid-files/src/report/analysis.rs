@@ -60,7 +60,7 @@ fn measured_section(s: &mut String, a: &Analysis) {
         "FRF: {} estimator, {} {} averaged, {} lines {:.3} .. {:.3} Hz, fs {} Hz, {:?} response; median line uncertainty {uncertainty}",
         m.method,
         m.averages,
-        if m.method == "periodic" { "periods" } else { "segments" },
+        if m.method == "welch_h1" { "segments" } else { "periods" },
         f.len(),
         f.freq_hz.first().copied().unwrap_or(0.0),
         f.freq_hz.last().copied().unwrap_or(0.0),

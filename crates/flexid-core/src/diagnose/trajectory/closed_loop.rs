@@ -160,6 +160,7 @@ pub fn simulate(p: &Plant, s: &Setup) -> Recording {
                 peak_nm: Some(peak),
                 rms_nm: None,
                 design: None,
+                blocks: Vec::new(),
             }),
             source: Some("closed-loop simulation of a prismatic axis (test)".into()),
             ..Sidecar::default()

@@ -31,14 +31,17 @@ use crate::frf::FrfKind;
 use crate::recording::Recording;
 
 /// Whether [`crate::diagnose::diagnose`] takes the trajectory path: a one-body model
-/// (`masses == 1`) and no recording with a periodic excitation (the FRF estimator's own
-/// test, [`crate::analysis::periodic_excitation`]).
+/// (`masses == 1`) and no recording with a designed excitation (a multisine, a sweep or a
+/// stepped sine has an FRF; a trajectory, kind `other` or undescribed, does not).
 pub fn applies(recs: &[Recording], masses: usize) -> bool {
     masses == 1
         && !recs.is_empty()
-        && recs
-            .iter()
-            .all(|r| crate::analysis::periodic_excitation(r).is_none())
+        && recs.iter().all(|r| {
+            r.sidecar
+                .excitation
+                .as_ref()
+                .is_none_or(|e| e.kind == crate::excitation::ExcitationKind::Other)
+        })
 }
 
 /// The systematic and raw gap [dB] and the reduced chi² of a model.

@@ -76,12 +76,12 @@ pub fn estimate_frf(
         MotionSignal::Acceleration => None,
     };
     let grid_words = quantum.map_or(String::new(), |q| {
-        format!("; the motion lies on a grid of {q:.4e} (an encoder count), whose repeating error is added to each line's variance")
+        format!("; the motion lies on a grid of {q:.4e} (an encoder count), whose error, as far as it repeats from period to period, is added to each line's variance")
     });
     let periodic = periodic_excitation(rec);
     let stepped = stepped_blocks(rec);
     let mut out = if let Some(blocks) = stepped {
-        let frf = frf::estimate_stepped(blocks, u, &y, fs, kind, quantum)?;
+        let frf = frf::estimate_stepped(blocks, u, &y, fs, kind, quantum.map(|q| (q, signal)))?;
         let periods = blocks.iter().map(|b| b.periods).min().unwrap_or(0);
         let choices = format!(
             "FRF: stepped sine, each of the {} dwell blocks its own periodic experiment (its settle periods dropped, at least {periods} steady periods averaged, no window), one line per block, line variance from the period-to-period scatter{grid_words}{}",
@@ -97,7 +97,14 @@ pub fn estimate_frf(
             choices,
         }
     } else if let Some(info) = periodic {
-        let mut est = frf::PeriodicEstimator::from_info(info, fs, kind)?.with_quantum(quantum);
+        let repeating = quantum.map(|q| {
+            let n = info.period_samples;
+            let start = (info.transient_periods * n).min(signal.len());
+            let periods = info.periods.min((signal.len() - start) / n.max(1));
+            let sigma = frf::quantisation::scatter_std(&signal[start..], n, periods);
+            frf::quantisation::repeating_variance(q, sigma.unwrap_or(0.0))
+        });
+        let mut est = frf::PeriodicEstimator::from_info(info, fs, kind)?.with_quantum(repeating);
         est.push(u, &y)?;
         let frf = est.estimate()?;
         let choices = format!(

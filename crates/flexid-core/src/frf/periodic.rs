@@ -85,8 +85,9 @@ pub struct PeriodicEstimator {
     /// Sorted, deduplicated excited lines; empty = infer from the input spectrum.
     lines: Vec<usize>,
     infer_threshold: f64,
-    /// Grid step of the recorded motion signal (an encoder count), when known: its
-    /// repeating error is added to each line's variance ([`super::quantisation`]).
+    /// Power of the repeating quantisation error of the recorded motion signal (an
+    /// encoder's counts), when known: added to each line's variance
+    /// ([`super::quantisation`]).
     quantum: Option<f64>,
     fft: Arc<dyn RealToComplex<f64>>,
     buf_u: Vec<f64>,
@@ -197,12 +198,12 @@ impl PeriodicEstimator {
         self
     }
 
-    /// The grid step of the recorded motion signal (for a differenced velocity, of the
-    /// position) in its own units, e.g. `2 pi / counts per revolution` \[rad\]: each line's
-    /// variance gets the quantisation floor of [`super::quantisation::line_variance`].
-    /// `None` (the default) adds nothing.
-    pub fn with_quantum(mut self, step: Option<f64>) -> Self {
-        self.quantum = step.filter(|q| q.is_finite() && *q > 0.0);
+    /// The power of the repeating quantisation error of the recorded motion signal (for a
+    /// differenced velocity, of the position) in its own units squared
+    /// ([`super::quantisation::repeating_variance`]): each line's variance gets the floor of
+    /// [`super::quantisation::line_variance`]. `None` (the default) adds nothing.
+    pub fn with_quantum(mut self, repeating_var: Option<f64>) -> Self {
+        self.quantum = repeating_var.filter(|q| q.is_finite() && *q > 0.0);
         self
     }
 

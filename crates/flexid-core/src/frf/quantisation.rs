@@ -16,10 +16,17 @@
 //!
 //! `var_q H(k) = q²/12 · |D(ω_k)|² / N / |U(k)|²`.
 //!
-//! It is not divided by the number of periods (a repeating error does not average); where
-//! the motion dithers the error from period to period it is also in the scatter, and the
-//! floor then overstates the variance by at most itself: conservative where quantisation
-//! matters, nothing where it does not.
+//! It is not divided by the number of periods: a repeating error does not average. Only
+//! the repeating part counts, though: where the motion differs from period to period (noise,
+//! drift) the error differs too and is already in the scatter. With a non-repeating
+//! position part of standard deviation `σ` (Gaussian), the error's mean over that part is
+//! the sawtooth's Fourier series `e(x) = Σ_k (-1)^k q/(π k) sin(2π k x/q)` with each
+//! harmonic scaled by the characteristic function `exp(-2π² k² σ²/q²)`, so its power is
+//!
+//! `σ_q² = Σ_k q²/(2π² k²) · exp(-4π² k² σ²/q²)`
+//!
+//! (`q²/12` at `σ = 0`, `Σ 1/k² = π²/6`; already below 1e-3 of it at `σ = q/2`), and
+//! `q²/12` above becomes `σ_q²` ([`repeating_variance`]).
 
 use super::types::FrfKind;
 use num_complex::Complex64;
@@ -72,13 +79,53 @@ fn on_grid_share(x: &[f64], q: f64) -> f64 {
     on as f64 / x.len() as f64
 }
 
-/// The variance [(unit of H)²] that a grid of step `q` (in the recorded signal's units)
-/// adds to the FRF line at `freq_hz` whose mean input over one period of `period_samples`
-/// samples is `u` (the `1/N`-scaled DFT). `kind` says how the recorded signal became the
-/// estimator's output: a differenced position passes the error through
-/// `fs (1 - e^(-jωT))`.
+/// The power of the part of the quantisation error that repeats from period to period
+/// [(signal unit)²], for a grid of step `q` and a non-repeating motion of standard
+/// deviation `sigma` (both in the signal's units): `Σ_k q²/(2π²k²) exp(-4π²k²σ²/q²)`.
+pub fn repeating_variance(q: f64, sigma: f64) -> f64 {
+    let a = 4.0 * std::f64::consts::PI.powi(2) * (sigma / q).powi(2);
+    let c = q * q / (2.0 * std::f64::consts::PI.powi(2));
+    let mut sum = 0.0;
+    for k in 1..=10_000u32 {
+        let k2 = f64::from(k * k);
+        let term = c / k2 * (-a * k2).exp();
+        sum += term;
+        if term < 1e-12 * sum {
+            break;
+        }
+    }
+    // the tail of the undamped series, sum over k > K of 1/k² ~ 1/K, when sigma = 0
+    if a == 0.0 {
+        sum += c / 10_000.0;
+    }
+    sum
+}
+
+/// Standard deviation of the non-repeating part of a periodic record: the period-to-period
+/// scatter of each sample, pooled over the period. `x` holds `periods` periods of
+/// `period_samples` samples from its start. `None` with fewer than 2 periods.
+pub fn scatter_std(x: &[f64], period_samples: usize, periods: usize) -> Option<f64> {
+    if periods < 2 || period_samples == 0 || x.len() < periods * period_samples {
+        return None;
+    }
+    let n = period_samples;
+    let mut acc = 0.0;
+    for i in 0..n {
+        let mean = (0..periods).map(|m| x[m * n + i]).sum::<f64>() / periods as f64;
+        acc += (0..periods)
+            .map(|m| (x[m * n + i] - mean).powi(2))
+            .sum::<f64>();
+    }
+    Some((acc / (n * (periods - 1)) as f64).sqrt())
+}
+
+/// The variance [(unit of H)²] that a repeating error of power `repeating_var` (in the
+/// recorded signal's units², [`repeating_variance`]) adds to the FRF line at `freq_hz`
+/// whose mean input over one period of `period_samples` samples is `u` (the `1/N`-scaled
+/// DFT). `kind` says how the recorded signal became the estimator's output: a differenced
+/// position passes the error through `fs (1 - e^(-jωT))`.
 pub fn line_variance(
-    q: f64,
+    repeating_var: f64,
     kind: FrfKind,
     freq_hz: f64,
     sample_rate_hz: f64,
@@ -93,7 +140,7 @@ pub fn line_variance(
         }
         _ => 1.0,
     };
-    let v = q * q / 12.0 * d2 / period_samples as f64 / u.norm_sqr();
+    let v = repeating_var * d2 / period_samples as f64 / u.norm_sqr();
     if v.is_finite() {
         v
     } else {
@@ -163,14 +210,72 @@ mod tests {
         }
         let mc = acc / trials as f64;
         let u = Complex64::new(1.0, 0.0);
-        let v = line_variance(q, FrfKind::DifferencedVelocity, f, fs, n, u);
+        let v = line_variance(q * q / 12.0, FrfKind::DifferencedVelocity, f, fs, n, u);
         assert!((v / mc - 1.0).abs() < 0.08, "floor {v} vs Monte Carlo {mc}");
         // a larger input divides it
-        let v2 = line_variance(q, FrfKind::DifferencedVelocity, f, fs, n, 2.0 * u);
+        let v2 = line_variance(
+            q * q / 12.0,
+            FrfKind::DifferencedVelocity,
+            f,
+            fs,
+            n,
+            2.0 * u,
+        );
         assert!((v / v2 - 4.0).abs() < 1e-9);
         assert_eq!(
             line_variance(q, FrfKind::Velocity, f, fs, n, Complex64::new(0.0, 0.0)),
             0.0
         );
+    }
+
+    /// The repeating part against Monte Carlo: quantise a fixed value plus Gaussian noise of
+    /// std sigma, average the error over the noise, and take the power of that mean over
+    /// values spread across a count.
+    #[test]
+    fn the_repeating_part_fades_with_the_dither() {
+        let q = 1.0;
+        assert!((repeating_variance(q, 0.0) / (q * q / 12.0) - 1.0).abs() < 1e-3);
+        let mut s = 3u64;
+        for sigma in [0.1, 0.2, 0.3] {
+            let (values, draws) = (200, 4000);
+            let mut power = 0.0;
+            for v in 0..values {
+                let x = v as f64 / values as f64 * q;
+                let mut mean = 0.0;
+                for _ in 0..draws {
+                    // Box-Muller
+                    let (u1, u2) = (lcg(&mut s).max(1e-300), lcg(&mut s));
+                    let n =
+                        sigma * (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos();
+                    let y = x + n;
+                    mean += (y / q).round() * q - y;
+                }
+                mean /= draws as f64;
+                power += mean * mean;
+            }
+            power /= values as f64;
+            let model = repeating_variance(q, sigma);
+            // Monte Carlo noise of the mean: q²/12 / draws per value
+            let tol = 3.0 * (1.0 / 12.0) / draws as f64 + 0.1 * model;
+            assert!(
+                (power - model).abs() < tol,
+                "sigma {sigma}: {power} vs {model}"
+            );
+        }
+        assert!(repeating_variance(q, 0.5) < 1e-3 * repeating_variance(q, 0.0));
+    }
+
+    #[test]
+    fn the_scatter_of_a_repeating_record_is_zero() {
+        let x: Vec<f64> = (0..300).map(|k| ((k % 100) as f64).sin()).collect();
+        assert!(scatter_std(&x, 100, 3).unwrap() < 1e-12);
+        let y: Vec<f64> = x
+            .iter()
+            .enumerate()
+            .map(|(k, v)| v + (k / 100) as f64)
+            .collect();
+        // period offsets 0, 1, 2: each sample's scatter is 1
+        assert!((scatter_std(&y, 100, 3).unwrap() - 1.0).abs() < 1e-12);
+        assert_eq!(scatter_std(&y, 100, 1), None);
     }
 }

@@ -14,15 +14,17 @@ use crate::excitation::SteppedBlock;
 /// `u` is the torque command [N m] and `y` the motion signal of the whole record (block
 /// `start` indices refer to them). Errors: `TooShort` when a block runs past the end of the
 /// record or holds no steady period, `NoExcitedLines` without blocks, and the periodic
-/// estimator's own errors. `quantum` is the grid step of the recorded motion signal, as in
-/// [`PeriodicEstimator::with_quantum`].
+/// estimator's own errors. `grid` is the grid step of the recorded motion signal with that
+/// signal (the position for a differenced velocity): each block's repeating quantisation
+/// error, from its own period-to-period scatter, is added to its line's variance
+/// ([`super::quantisation`]).
 pub fn estimate_stepped(
     blocks: &[SteppedBlock],
     u: &[f64],
     y: &[f64],
     sample_rate_hz: f64,
     kind: FrfKind,
-    quantum: Option<f64>,
+    grid: Option<(f64, &[f64])>,
 ) -> Result<Frf, FrfError> {
     if blocks.is_empty() {
         return Err(FrfError::NoExcitedLines);
@@ -37,8 +39,13 @@ pub fn estimate_stepped(
                 unit: "samples",
             });
         }
-        let mut est =
-            PeriodicEstimator::from_info(&b.info(), sample_rate_hz, kind)?.with_quantum(quantum);
+        let mut est = PeriodicEstimator::from_info(&b.info(), sample_rate_hz, kind)?.with_quantum(
+            grid.map(|(q, x)| {
+                let steady = &x[b.steady_start().min(x.len())..];
+                let sigma = super::quantisation::scatter_std(steady, b.period_samples, b.periods);
+                super::quantisation::repeating_variance(q, sigma.unwrap_or(0.0))
+            }),
+        );
         est.push(&u[b.start..end], &y[b.start..end])?;
         let one = est.estimate()?;
         for i in 0..one.len() {

@@ -183,13 +183,11 @@ pub fn case_line(o: &Outcome) -> String {
     if let Some(e) = &o.error {
         let _ = write!(s, " ({e})");
     } else {
-        let _ = write!(
-            s,
-            " gap {:.2} -> {:.2} dB ({:.2})",
-            o.before_db,
-            o.after_db,
-            o.after_db / o.before_db
-        );
+        let _ = write!(s, " gap {:.2} -> {:.2} dB", o.before_db, o.after_db);
+        // the ratio only where there was a gap to shrink (no NaN or infinity printed)
+        if o.before_db > 0.0 && o.after_db.is_finite() {
+            let _ = write!(s, " ({:.2})", o.after_db / o.before_db);
+        }
         if t.group == Group::D {
             let bands: Vec<String> = o
                 .bands_hz

@@ -17,7 +17,7 @@ pub struct EstimatedFrf {
     pub frf: Frf,
     /// Levels at the non-excited lines (periodic excitation only).
     pub nonexcited: Option<NonExcitedLevels>,
-    /// "periodic", "stepped" or "welch_h1".
+    /// "periodic", "stepped", "lpm" (one sweep) or "welch_h1".
     pub method: &'static str,
     /// The motion signal used.
     pub motion: MotionSignal,
@@ -38,6 +38,14 @@ pub fn periodic_excitation(rec: &Recording) -> Option<&crate::excitation::Excita
     })
 }
 
+/// The description of a recording that is one swept sine (not periodic).
+fn single_sweep(rec: &Recording) -> Option<&crate::excitation::ExcitationInfo> {
+    rec.sidecar
+        .excitation
+        .as_ref()
+        .filter(|e| e.kind == ExcitationKind::Chirp && e.period_samples == 0)
+}
+
 /// The dwell blocks of a stepped-sine recording whose description carries them.
 fn stepped_blocks(rec: &Recording) -> Option<&[crate::excitation::SteppedBlock]> {
     rec.sidecar
@@ -52,8 +60,8 @@ fn stepped_blocks(rec: &Recording) -> Option<&[crate::excitation::SteppedBlock]>
 ///
 /// Position is differenced to velocity (never `j w` times the DFT of a drifting position);
 /// periodic excitation uses the per-line periodic estimator with its variance, a stepped
-/// sine with its blocks the same estimator block by block, anything else the Welch H1
-/// estimator with coherence. The result is limited to the excited band, or to
+/// sine with its blocks the same estimator block by block, a single sweep the local
+/// polynomial method, anything else the Welch H1 estimator with coherence. The result is limited to the excited band, or to
 /// `band_hz` when given.
 pub fn estimate_frf(
     rec: &Recording,
@@ -93,6 +101,28 @@ pub fn estimate_frf(
             nonexcited: None,
             averages: periods,
             method: "stepped",
+            motion,
+            choices,
+        }
+    } else if let Some(info) = single_sweep(rec) {
+        let frf = frf::estimate_lpm(u, &y, fs, kind, info.band_hz.or(band_hz))?;
+        let q = frf::lpm_dof();
+        let width = 2 * frf::lpm::HALF_WIDTH + 1;
+        let choices = format!(
+            "FRF: local polynomial method on the whole sweep ({} samples, {:.1} s, no window; {:.4} Hz DFT lines): in each window of {width} lines the response and the transient are polynomials of degree {}, one estimate per window ({:.4} Hz apart) with the noise variance from the fit's residual ({q} complex degrees of freedom){}",
+            u.len(),
+            u.len() as f64 / fs,
+            fs / u.len() as f64,
+            frf::lpm::DEGREE,
+            width as f64 * fs / u.len() as f64,
+            motion_words(motion)
+        );
+        EstimatedFrf {
+            frf,
+            nonexcited: None,
+            // a variance with q complex dof is that of q + 1 averages
+            averages: q + 1,
+            method: "lpm",
             motion,
             choices,
         }

@@ -10,6 +10,8 @@
 //!   response is freed of the ramp of a constant acceleration (`ramp.rs`).
 //! * [`estimate_stepped`]: stepped sine, one line per dwell block by the periodic
 //!   estimator.
+//! * [`estimate_lpm`]: one non-periodic record (a single sweep), the local polynomial
+//!   method on the whole record's DFT, with the transient and a noise variance per line.
 //! * [`WelchH1`] / [`welch_h1`]: arbitrary excitation, Welch-averaged H1 with coherence.
 //! * [`differenced_velocity`], [`difference_quotient_response`], [`remove_linear_trend`]:
 //!   turning drifting encoder position into something an FRF can be taken from.
@@ -17,6 +19,7 @@
 //! All estimators plan their FFT once and process streamed chunks without allocating.
 
 mod error;
+pub mod lpm;
 mod periodic;
 pub mod quantisation;
 mod ramp;
@@ -29,6 +32,7 @@ mod velocity;
 mod welch;
 
 pub use error::FrfError;
+pub use lpm::{estimate_lpm, lpm_dof};
 pub use periodic::{
     estimate_periodic, NonExcitedLevels, PeriodicEstimator, DEFAULT_INFER_THRESHOLD,
 };

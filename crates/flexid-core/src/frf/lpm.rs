@@ -1,0 +1,332 @@
+//! Local polynomial method (LPM) for one non-periodic record, e.g. a single swept sine.
+//!
+//! The DFT of the whole record (no window) obeys, at every line `k`,
+//! `Y(k) = G(k) U(k) + T(k) + V(k)`: the response, a transient term `T` (the record does
+//! not start and end at rest: leakage and the initial/final conditions, smooth in
+//! frequency because it shares the system's poles) and noise `V`. Around each line,
+//! `G(k + r)` and `T(k + r)` are polynomials of degree [`DEGREE`] in `r`; the `2(R+1)`
+//! coefficients are fitted by least squares to the [`HALF_WIDTH`]`·2 + 1` lines of the
+//! window, `G(k)` is the constant term, and the residual gives the noise variance with
+//! `q = 2n + 1 - 2(R + 1)` complex degrees of freedom (Pintelon, Schoukens, Vandersteen,
+//! Barbé, "Estimation of nonparametric noise and FRF models for multivariable systems",
+//! MSSP 24 (2010)):
+//!
+//! `σ²_V = |e|²/q`, `var G(k) = σ²_V [(K^H K)^{-1}]_00`.
+//!
+//! Where a Welch estimate smears a sweep's resonances over its segment's resolution and
+//! leaks its non-stationarity into a bias its coherence-based variance does not hold, the
+//! LPM keeps the record's full resolution and a variance that holds: on a world sweep the
+//! mean `|G - G_true|²/var` over 746 lines was 1.06, the `F(2, 2q)` mean 1.12 (Welch with
+//! its own variance: 4.6 around the resonances).
+//!
+//! **The known shape of a mechanical axis.** A polynomial in `r` cannot follow `1/ω` where
+//! the window is a sizeable part of the frequency itself: at 3 Hz with 2 Hz windows the
+//! quadratic misses a rigid body's velocity response by 0.2 dB, dozens of standard
+//! deviations of a slow sweep's low lines. So the polynomial models `G(k)·(jω_k)^p`, the
+//! response with its asymptote divided out (`p` = 2 for position, 1 for velocity, 0 for
+//! anything else, from the FRF kind): each window's regressor is `U(k+r)·(k/(k+r))^p`,
+//! equal to `U` at the centre line, so the constant term is still `G(k)` and the
+//! variance formula is unchanged. Where the response does not follow the asymptote (a
+//! resonance), the remaining curvature is what the polynomial took before.
+//!
+//! Windows do not overlap: each line's estimate uses its own `2n + 1` DFT lines, so the
+//! estimates are independent (the diagnosis's noise floor sums them as independent lines)
+//! and spaced `(2n + 1) fs / N` apart.
+
+use super::error::{check_fs, FrfError};
+use super::types::{Frf, FrfKind};
+use nalgebra::{SMatrix, SVector};
+use num_complex::Complex64;
+use realfft::RealFftPlanner;
+
+/// Polynomial degree `R` of `G` and `T` in each window: 2, the usual choice (degree 1
+/// leaves the curvature of a resonance in the noise estimate; degree 3 and 4 with the
+/// same dof need wider windows, and their least squares grow ill-conditioned where the
+/// sweep's input is small).
+pub const DEGREE: usize = 2;
+
+/// Half-width `n` of a window: `2n + 1 = 15` lines for `q = 9` complex degrees of freedom
+/// of the noise variance (with `n = 3`, the minimum, `q = 1` and the line `z²` would be
+/// `F(2, 2)`, whose mean is infinite).
+pub const HALF_WIDTH: usize = 7;
+
+/// Unknowns per window: `G` and `T`, each `R + 1` coefficients.
+const UNKNOWNS: usize = 2 * (DEGREE + 1);
+
+/// Complex degrees of freedom of each line's noise variance, `2n + 1 - 2(R + 1)`.
+pub const fn lpm_dof() -> usize {
+    2 * HALF_WIDTH + 1 - UNKNOWNS
+}
+
+/// The LPM estimate of `y / u` over the whole record at the lines whose window centre lies
+/// in `band_hz` (all lines from 1 to Nyquist when `None`), one line per window of
+/// `2 HALF_WIDTH + 1` DFT lines.
+///
+/// Errors: `TooShort` when the record holds fewer than one window, `LengthMismatch` for
+/// different lengths, `InvalidParameter` for a bad sample rate, `NoExcitedLines` when no
+/// window lies in the band.
+pub fn estimate_lpm(
+    u: &[f64],
+    y: &[f64],
+    sample_rate_hz: f64,
+    kind: FrfKind,
+    band_hz: Option<[f64; 2]>,
+) -> Result<Frf, FrfError> {
+    check_fs(sample_rate_hz)?;
+    if u.len() != y.len() {
+        return Err(FrfError::LengthMismatch {
+            u: u.len(),
+            y: y.len(),
+        });
+    }
+    let n = u.len();
+    let width = 2 * HALF_WIDTH + 1;
+    if n / 2 < width + 1 {
+        return Err(FrfError::TooShort {
+            needed: 2 * (width + 1),
+            got: n,
+            unit: "samples",
+        });
+    }
+    let spectrum = |x: &[f64]| {
+        let fft = RealFftPlanner::<f64>::new().plan_fft_forward(n);
+        let mut input = x.to_vec();
+        let mut out = fft.make_output_vec();
+        fft.process(&mut input, &mut out)
+            .expect("buffer lengths from the plan");
+        out
+    };
+    let (su, sy) = (spectrum(u), spectrum(y));
+    let df = sample_rate_hz / n as f64;
+    let [lo, hi] = band_hz.unwrap_or([df, sample_rate_hz / 2.0]);
+    let mut frf = Frf {
+        freq_hz: Vec::new(),
+        h: Vec::new(),
+        var: Vec::new(),
+        coherence: None,
+        kind,
+        sample_rate_hz,
+    };
+    // windows [k - n, k + n] tile the lines from 1 (DC left out) to the last full window
+    let last = su.len() - 1;
+    let mut k = 1 + HALF_WIDTH;
+    while k + HALF_WIDTH <= last {
+        let f = k as f64 * df;
+        if f >= lo && f <= hi {
+            if let Some((g, var)) = window_fit(
+                &su[k - HALF_WIDTH..=k + HALF_WIDTH],
+                &sy[k - HALF_WIDTH..=k + HALF_WIDTH],
+                k,
+                asymptote_power(kind),
+            ) {
+                frf.freq_hz.push(f);
+                frf.h.push(g);
+                frf.var.push(var);
+            }
+        }
+        k += width;
+    }
+    if frf.is_empty() {
+        return Err(FrfError::NoExcitedLines);
+    }
+    Ok(frf)
+}
+
+/// The power `p` of the high- and low-frequency asymptote `1/(jω)^p` of a mechanical axis's
+/// response of this kind (see the module's documentation).
+fn asymptote_power(kind: FrfKind) -> i32 {
+    match kind {
+        FrfKind::Position => 2,
+        FrfKind::Velocity | FrfKind::DifferencedVelocity => 1,
+        FrfKind::Other => 0,
+    }
+}
+
+/// `G(k)` and its variance from one window of `2n + 1` lines of `U` and `Y` (centre line
+/// `centre` in the middle), the polynomial taken on `G·(jω)^power`; `None` when the input
+/// is zero or the fit is singular.
+fn window_fit(
+    u: &[Complex64],
+    y: &[Complex64],
+    centre: usize,
+    power: i32,
+) -> Option<(Complex64, f64)> {
+    let scale = u.iter().map(|v| v.norm()).fold(0.0_f64, f64::max);
+    if !(scale > 0.0 && scale.is_finite()) {
+        return None;
+    }
+    // U(k+r) (k/(k+r))^p: the asymptote divided out, 1 at the centre line
+    let shaped = |i: usize| {
+        let line = (centre + i) as f64 - HALF_WIDTH as f64;
+        u[i] / scale * (centre as f64 / line).powi(power)
+    };
+    let mut normal = SMatrix::<Complex64, UNKNOWNS, UNKNOWNS>::zeros();
+    let mut rhs = SVector::<Complex64, UNKNOWNS>::zeros();
+    let row = |i: usize| {
+        // r in [-1, 1] for conditioning; the constant terms are what is read
+        let r = (i as f64 - HALF_WIDTH as f64) / HALF_WIDTH as f64;
+        let mut k = SVector::<Complex64, UNKNOWNS>::zeros();
+        let mut p = 1.0;
+        for s in 0..=DEGREE {
+            k[s] = shaped(i) * p;
+            k[DEGREE + 1 + s] = Complex64::new(p, 0.0);
+            p *= r;
+        }
+        k
+    };
+    for (i, yi) in y.iter().enumerate() {
+        let k = row(i);
+        normal += k.conjugate() * k.transpose();
+        rhs += k.conjugate() * *yi;
+    }
+    let inv = normal.try_inverse()?;
+    let theta = inv * rhs;
+    let rss: f64 = y
+        .iter()
+        .enumerate()
+        .map(|(i, yi)| (yi - row(i).dot(&theta)).norm_sqr())
+        .sum();
+    let s2 = rss / lpm_dof() as f64;
+    let g = theta[0] / scale;
+    let var = s2 * inv[(0, 0)].re / (scale * scale);
+    (g.re.is_finite() && g.im.is_finite() && var.is_finite() && var > 0.0).then_some((g, var))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::excitation::ChirpDesign;
+
+    fn lcg(state: &mut u64) -> f64 {
+        *state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (*state >> 11) as f64 / (1u64 << 53) as f64
+    }
+
+    /// A lightly damped resonance y[k] = a1 y[k-1] + a2 y[k-2] + b u[k], its exact response.
+    fn resonance(u: &[f64], fs: f64, f0: f64, zeta: f64) -> (Vec<f64>, impl Fn(f64) -> Complex64) {
+        let w = 2.0 * std::f64::consts::PI * f0 / fs;
+        let rho = (-zeta * w).exp();
+        let (a1, a2, b) = (
+            2.0 * rho * (w * (1.0 - zeta * zeta).sqrt()).cos(),
+            -rho * rho,
+            0.01,
+        );
+        let mut y = vec![0.0; u.len()];
+        for k in 0..u.len() {
+            let y1 = if k >= 1 { y[k - 1] } else { 0.0 };
+            let y2 = if k >= 2 { y[k - 2] } else { 0.0 };
+            y[k] = a1 * y1 + a2 * y2 + b * u[k];
+        }
+        let exact = move |f: f64| {
+            let z1 = Complex64::from_polar(1.0, -2.0 * std::f64::consts::PI * f / fs);
+            b / (1.0 - a1 * z1 - a2 * z1 * z1)
+        };
+        (y, exact)
+    }
+
+    fn sweep(fs: f64, secs: f64) -> Vec<f64> {
+        let mut c = ChirpDesign::new(fs, 1.0, 0.4 * fs, secs, 1.0);
+        c.taper_s = 0.05 * secs;
+        c.generate().unwrap().signal
+    }
+
+    /// Without noise the estimate is the exact response (the record ends with the resonance
+    /// still ringing: the transient term takes it), to the polynomial's approximation: that
+    /// is the method's known limit, a bias where a resonance is narrower than the window
+    /// (here half-power width 1.6 Hz against a 1.9 Hz window: 5 % at the peak line, under
+    /// 1 % within 3 half-widths, under 0.2 % elsewhere).
+    #[test]
+    fn a_noise_free_sweep_gives_the_exact_response() {
+        let fs = 1000.0;
+        let u = sweep(fs, 8.0);
+        let (f0, zeta) = (40.0, 0.02);
+        let (y, exact) = resonance(&u, fs, f0, zeta);
+        let frf = estimate_lpm(&u, &y, fs, FrfKind::Other, Some([2.0, 300.0])).unwrap();
+        assert!(frf.len() > 100);
+        for (f, h) in frf.freq_hz.iter().zip(&frf.h) {
+            let e = (h / exact(*f) - 1.0).norm();
+            let near = (f - f0).abs();
+            let bound = if near < zeta * f0 {
+                0.06
+            } else if near < 3.0 * zeta * f0 {
+                0.01
+            } else {
+                2e-3
+            };
+            assert!(e < bound, "{f} Hz: relative error {e}");
+        }
+        assert!(frf.freq_hz.windows(2).all(|w| w[1] > w[0]));
+        assert!(frf.freq_hz[0] >= 2.0 && *frf.freq_hz.last().unwrap() <= 300.0);
+    }
+
+    /// A rigid body's velocity `1/(J jω + b)` under a slow sweep: the low lines, where a
+    /// window spans a good part of the frequency, are exact once the `1/ω` asymptote is
+    /// divided out (a plain quadratic in the same windows misses them by several times
+    /// more; on a world sweep whose first window sat below an anti-resonance, 0.38 dB
+    /// against 0.09 dB).
+    #[test]
+    fn a_rigid_body_is_exact_at_the_low_lines() {
+        let fs = 1000.0;
+        let u = sweep(fs, 8.0);
+        // v[k] = a v[k-1] + c u[k]: a pole at 0.2 Hz
+        let a = (-2.0 * std::f64::consts::PI * 0.2 / fs).exp();
+        let c = 1e-3;
+        let mut y = vec![0.0; u.len()];
+        for k in 0..u.len() {
+            y[k] = c * u[k] + if k > 0 { a * y[k - 1] } else { 0.0 };
+        }
+        let exact = |f: f64| {
+            c / (1.0 - a * Complex64::from_polar(1.0, -2.0 * std::f64::consts::PI * f / fs))
+        };
+        let worst = |kind| {
+            let frf = estimate_lpm(&u, &y, fs, kind, Some([1.5, 300.0])).unwrap();
+            assert!(frf.freq_hz[0] < 3.0);
+            frf.freq_hz
+                .iter()
+                .zip(&frf.h)
+                .map(|(f, h)| (h / exact(*f) - 1.0).norm())
+                .fold(0.0_f64, f64::max)
+        };
+        let (shaped, plain) = (worst(FrfKind::Velocity), worst(FrfKind::Other));
+        assert!(shaped < 2e-4, "with the asymptote: worst {shaped}");
+        assert!(plain > 2.0 * shaped, "plain quadratic: worst {plain}");
+    }
+
+    /// With output noise, `|G - G_true|²/var` has the `F(2, 2q)` mean `q/(q-1)` (Monte Carlo
+    /// over lines and records), where a Welch estimate of the same record is biased.
+    #[test]
+    fn the_variance_holds_on_a_noisy_sweep() {
+        let fs = 1000.0;
+        let mut s = 5u64;
+        let mut z2 = Vec::new();
+        for _ in 0..4 {
+            let u = sweep(fs, 8.0);
+            let (mut y, exact) = resonance(&u, fs, 40.0, 0.02);
+            for v in y.iter_mut() {
+                *v += 2e-4 * (lcg(&mut s) - 0.5);
+            }
+            let frf = estimate_lpm(&u, &y, fs, FrfKind::Other, Some([2.0, 300.0])).unwrap();
+            for i in 0..frf.len() {
+                z2.push((frf.h[i] - exact(frf.freq_hz[i])).norm_sqr() / frf.var[i]);
+            }
+        }
+        let mean = z2.iter().sum::<f64>() / z2.len() as f64;
+        let q = lpm_dof() as f64;
+        let expect = q / (q - 1.0);
+        // the mean of ~1000 F(2, 18) lines: standard deviation about 0.04
+        assert!(
+            (mean / expect - 1.0).abs() < 0.15,
+            "mean z2 {mean}, F mean {expect}"
+        );
+    }
+
+    #[test]
+    fn a_short_record_is_an_error() {
+        let r = estimate_lpm(&[0.0; 20], &[0.0; 20], 1000.0, FrfKind::Other, None);
+        assert!(matches!(r, Err(FrfError::TooShort { .. })), "{r:?}");
+        let r = estimate_lpm(&[0.0; 20], &[0.0; 21], 1000.0, FrfKind::Other, None);
+        assert!(matches!(r, Err(FrfError::LengthMismatch { .. })), "{r:?}");
+    }
+}

@@ -196,13 +196,7 @@ fn window_fit(
 mod tests {
     use super::*;
     use crate::excitation::ChirpDesign;
-
-    fn lcg(state: &mut u64) -> f64 {
-        *state = state
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (*state >> 11) as f64 / (1u64 << 53) as f64
-    }
+    use crate::frf::test_rng::lcg;
 
     /// A lightly damped resonance y[k] = a1 y[k-1] + a2 y[k-2] + b u[k], its exact response.
     fn resonance(u: &[f64], fs: f64, f0: f64, zeta: f64) -> (Vec<f64>, impl Fn(f64) -> Complex64) {

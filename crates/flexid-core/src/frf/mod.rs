@@ -26,6 +26,8 @@ mod ramp;
 mod stepped;
 mod support;
 #[cfg(test)]
+pub(crate) mod test_rng;
+#[cfg(test)]
 mod testutil;
 mod types;
 mod velocity;

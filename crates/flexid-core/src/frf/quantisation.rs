@@ -151,13 +151,7 @@ pub fn line_variance(
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn lcg(state: &mut u64) -> f64 {
-        *state = state
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (*state >> 11) as f64 / (1u64 << 53) as f64
-    }
+    use crate::frf::test_rng::lcg;
 
     #[test]
     fn the_step_of_an_encoder_is_found_and_a_smooth_signal_has_none() {

@@ -132,7 +132,7 @@ pub fn estimate_frf(
             let start = (info.transient_periods * n).min(signal.len());
             let periods = info.periods.min((signal.len() - start) / n.max(1));
             let sigma = frf::quantisation::scatter_std(&signal[start..], n, periods);
-            frf::quantisation::repeating_variance(q, sigma.unwrap_or(0.0))
+            frf::quantisation::repeating_from_scatter(q, sigma.unwrap_or(0.0))
         });
         let mut est = frf::PeriodicEstimator::from_info(info, fs, kind)?.with_quantum(repeating);
         est.push(u, &y)?;

@@ -27,6 +27,18 @@
 //!
 //! (`q²/12` at `σ = 0`, `Σ 1/k² = π²/6`; already below 1e-3 of it at `σ = q/2`), and
 //! `q²/12` above becomes `σ_q²` ([`repeating_variance`]).
+//!
+//! `σ` is not the scatter of the recorded (quantised) signal itself: with little noise a
+//! sample either stays on its count or jumps a whole one, so the recorded scatter is far
+//! larger than the noise behind it (noise of `0.05 q` scatters the counts by about
+//! `0.2 q`, and `σ_q²` taken at `0.2 q` is five times too small). Averaged over where the
+//! motion sits within a count, the recorded scatter's variance is that of the noise plus
+//! the part of the error that does not repeat:
+//!
+//! `S² = σ² + q²/12 - σ_q²(σ)`,
+//!
+//! increasing in `σ` (0 at `σ = 0`, `σ² + q²/12` for `σ ≫ q`, Widrow's additive noise);
+//! [`noise_std_from_scatter`] solves it for `σ`.
 
 use super::types::FrfKind;
 use num_complex::Complex64;
@@ -99,6 +111,36 @@ pub fn repeating_variance(q: f64, sigma: f64) -> f64 {
         sum += c / 10_000.0;
     }
     sum
+}
+
+/// The standard deviation [signal unit] of the noise behind a quantised record whose
+/// period-to-period scatter is `scatter` on a grid of step `q`: the root of `S² = σ² +
+/// q²/12 - σ_q²(σ)` (see the module's documentation), by bisection on `[0, S]` (the root
+/// lies there: the error's non-repeating part only adds). `scatter` itself when `q` is
+/// not positive.
+pub fn noise_std_from_scatter(q: f64, scatter: f64) -> f64 {
+    if !(q > 0.0 && scatter > 0.0 && scatter.is_finite()) {
+        return scatter.max(0.0);
+    }
+    let target = scatter * scatter;
+    let recorded = |sigma: f64| sigma * sigma + q * q / 12.0 - repeating_variance(q, sigma);
+    let (mut lo, mut hi) = (0.0, scatter);
+    for _ in 0..60 {
+        let mid = 0.5 * (lo + hi);
+        if recorded(mid) < target {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    0.5 * (lo + hi)
+}
+
+/// The repeating power [(signal unit)²] of a quantised periodic record from its recorded
+/// period-to-period scatter: [`repeating_variance`] at the noise
+/// [`noise_std_from_scatter`] finds behind the scatter.
+pub fn repeating_from_scatter(q: f64, scatter: f64) -> f64 {
+    repeating_variance(q, noise_std_from_scatter(q, scatter))
 }
 
 /// Standard deviation of the non-repeating part of a periodic record: the period-to-period
@@ -257,6 +299,40 @@ mod tests {
             );
         }
         assert!(repeating_variance(q, 0.5) < 1e-3 * repeating_variance(q, 0.0));
+    }
+
+    /// The noise behind a quantised periodic record, recovered from the scatter of the
+    /// counts (Monte Carlo: a slow sine of many counts, its samples quantised with Gaussian
+    /// noise period after period), where the scatter itself overstates small noise
+    /// several times.
+    #[test]
+    fn the_noise_behind_the_counts_is_recovered_from_their_scatter() {
+        let q = 1.0;
+        let (n, periods) = (2000usize, 40usize);
+        let mut s = 11u64;
+        for sigma in [0.03, 0.1, 0.3, 1.0] {
+            let mut x = Vec::with_capacity(n * periods);
+            for _ in 0..periods {
+                for k in 0..n {
+                    let clean = 37.3 * (2.0 * std::f64::consts::PI * k as f64 / n as f64).sin();
+                    let (u1, u2) = (lcg(&mut s).max(1e-300), lcg(&mut s));
+                    let noise =
+                        sigma * (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos();
+                    x.push(((clean + noise) / q).round() * q);
+                }
+            }
+            let scatter = scatter_std(&x, n, periods).unwrap();
+            let found = noise_std_from_scatter(q, scatter);
+            assert!(
+                (found / sigma - 1.0).abs() < 0.1,
+                "sigma {sigma}: scatter {scatter}, found {found}"
+            );
+            if sigma < 0.05 {
+                assert!(scatter > 3.0 * sigma, "the scatter overstates small noise");
+            }
+        }
+        assert_eq!(noise_std_from_scatter(q, 0.0), 0.0);
+        assert!((noise_std_from_scatter(0.0, 0.4) - 0.4).abs() < 1e-15);
     }
 
     #[test]

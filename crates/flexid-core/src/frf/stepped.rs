@@ -43,7 +43,7 @@ pub fn estimate_stepped(
             grid.map(|(q, x)| {
                 let steady = &x[b.steady_start().min(x.len())..];
                 let sigma = super::quantisation::scatter_std(steady, b.period_samples, b.periods);
-                super::quantisation::repeating_variance(q, sigma.unwrap_or(0.0))
+                super::quantisation::repeating_from_scatter(q, sigma.unwrap_or(0.0))
             }),
         );
         est.push(&u[b.start..end], &y[b.start..end])?;

@@ -29,6 +29,13 @@ pub enum Nl {
         k: usize,
         xref: f64,
     },
+    /// A cubic spring from the load (the last body) to the ground, torque `-k3 q³`
+    /// [`k3` in N m/rad³] (a Duffing oscillator; the Silverbox). The load's absolute
+    /// position matters, so a free chain starts moving as in its periodic steady state
+    /// (centred, no drift: [`centred_start`]).
+    GroundCubic {
+        k3: f64,
+    },
 }
 
 /// Finer steps per sub-step around a backlash contact change.
@@ -114,7 +121,13 @@ pub fn simulate(lin: &LinExt, nl: Nl, u: &[f64], fs: f64, substeps: usize) -> Si
     };
     let mut plain = lin.clone();
     plain.current_loop = None;
-    let (a, b) = plain.continuous(if n > 1 { Some(k) } else { None });
+    let (a, mut b) = plain.continuous(if n > 1 { Some(k) } else { None });
+    if let Nl::GroundCubic { .. } = nl {
+        // the ground spring's torque acts on the load alone: input column 2
+        b = b.resize_horizontally(3, 0.0);
+        b.column_mut(2).fill(0.0);
+        b[(2 * n - 1, 2)] = 1.0 / ch.inertia_kgm2[n - 1];
+    }
     let sub = substeps.max(1);
     let dt = 1.0 / fs / sub as f64;
     let ns = a.nrows();
@@ -153,6 +166,12 @@ pub fn simulate(lin: &LinExt, nl: Nl, u: &[f64], fs: f64, substeps: usize) -> Si
     } else {
         0.0
     };
+    let start = match nl {
+        Nl::GroundCubic { .. } if lin.motor_b == 0.0 && lin.ground_k == 0.0 => {
+            centred_start(ch, u, fs)
+        }
+        _ => vec![0.0; ns],
+    };
     let s = Setup {
         n,
         k,
@@ -161,6 +180,7 @@ pub fn simulate(lin: &LinExt, nl: Nl, u: &[f64], fs: f64, substeps: usize) -> Si
         lin_p,
         modes,
         bm,
+        start,
     };
     // fixed state sizes (the chain's 2n states, no current loop) unroll and vectorise
     match ns {
@@ -182,6 +202,42 @@ struct Setup {
     modes: Option<[Prop; 3]>,
     /// Input column of a motor torque over a sub-step.
     bm: Vec<f64>,
+    /// The initial state.
+    start: Vec<f64>,
+}
+
+/// The initial state of a free chain (no damper or spring to the ground) that moves as in
+/// its periodic steady state under `u`: every body at the rigid body's velocity offset
+/// and position offset that make the rigid motion's mean velocity and mean position zero
+/// over the record (from rest, a zero-mean torque leaves the rigid body a constant
+/// velocity that depends on the excitation's start: a drift that a spring to the ground
+/// would see and the measured axis, long centred by its spring, does not have). The state
+/// holds `2n` entries (positions, velocities), zero beyond.
+pub fn centred_start(ch: &crate::model::Chain, u: &[f64], fs: f64) -> Vec<f64> {
+    let n = ch.masses();
+    let mut x = vec![0.0; 2 * n];
+    if u.is_empty() {
+        return x;
+    }
+    let (jt, dt) = (ch.total_inertia(), 1.0 / fs);
+    // rigid velocity and position from rest under the held torque
+    let (mut w, mut r) = (0.0, 0.0);
+    let (mut w_sum, mut r_sum) = (0.0, 0.0);
+    for &uk in u {
+        w_sum += w;
+        r_sum += r;
+        r += w * dt + 0.5 * uk / jt * dt * dt;
+        w += uk / jt * dt;
+    }
+    let len = u.len() as f64;
+    let v0 = -w_sum / len;
+    // positions shift by v0 t as well: mean of t over the samples is (len - 1) dt / 2
+    let p0 = -(r_sum / len + v0 * (len - 1.0) * dt / 2.0);
+    for i in 0..n {
+        x[i] = p0;
+        x[n + i] = v0;
+    }
+    x
 }
 
 /// The time loop of [`simulate`], `N` states (`N = 0`: any number).
@@ -194,9 +250,13 @@ fn integrate<const N: usize>(s: &Setup, nl: Nl, u: &[f64]) -> SimOut {
         ref lin_p,
         ref modes,
         ref bm,
+        ref start,
     } = *s;
     let ns = bm.len();
     let mut x: Vec<f64> = vec![0.0; ns];
+    for (x, s) in x.iter_mut().zip(start) {
+        *x = *s;
+    }
     let mut xn: Vec<f64> = vec![0.0; ns];
     let mut xt: Vec<f64> = vec![0.0; ns];
     let mut pos = Vec::with_capacity(u.len());
@@ -241,6 +301,12 @@ fn integrate<const N: usize>(s: &Setup, nl: Nl, u: &[f64]) -> SimOut {
                     let dx = x[k + 1] - x[k];
                     let r = dx / xref;
                     let fc = c * dx * r * r;
+                    lin_p.apply::<N>(&x, &mut xn, uk, 1.5 * fc - 0.5 * fc_prev);
+                    fc_prev = fc;
+                }
+                (Nl::GroundCubic { k3 }, _) => {
+                    let q = x[n - 1];
+                    let fc = -k3 * q * q * q;
                     lin_p.apply::<N>(&x, &mut xn, uk, 1.5 * fc - 0.5 * fc_prev);
                     fc_prev = fc;
                 }
@@ -443,4 +509,78 @@ mod tests {
             );
         }
     }
+
+    /// A cubic spring to the ground on the load of a 2-mass chain against an independent
+    /// reference: RK4 of the full equations on 200 steps per sample. And the centred start
+    /// of a free chain: the linear free chain (k3 = 0) then does not drift (its position's
+    /// mean over the last quarter equals the first's).
+    #[test]
+    fn a_cubic_ground_spring_matches_a_fine_rk4() {
+        let fs = 1000.0;
+        let chain = Chain::new(vec![1e-3, 2e-3], vec![400.0], vec![0.02]).unwrap();
+        let n_samples = 4000;
+        let u: Vec<f64> = (0..n_samples)
+            .map(|k| {
+                let t = k as f64 / fs;
+                [(5.0, 0.3), (11.0, 1.0), (23.0, 2.0), (61.0, 0.5), (140.0, 2.5)]
+                    .iter()
+                    .map(|(f, p)| 0.02 * (2.0 * std::f64::consts::PI * f * t + p).sin())
+                    .sum()
+            })
+            .collect();
+        let lin = LinExt::nominal(chain.clone());
+        let free = simulate(&lin, Nl::GroundCubic { k3: 0.0 }, &u, fs, 4);
+        let quarter = n_samples / 4;
+        let mean = |x: &[f64]| x.iter().sum::<f64>() / x.len() as f64;
+        let rms = (free.pos.iter().map(|p| p * p).sum::<f64>() / n_samples as f64).sqrt();
+        let drift = (mean(&free.pos[3 * quarter..]) - mean(&free.pos[..quarter])).abs();
+        assert!(drift < 0.02 * rms, "drift {drift} of RMS {rms}");
+        // equivalent stiffness 3 k3 sigma² = J_t (2 pi 8 Hz)²: a ground resonance near 8 Hz
+        let jt = chain.total_inertia();
+        let k3 = 0.3 * jt * (2.0 * std::f64::consts::PI * 5.0).powi(2) / (3.0 * rms * rms);
+        // an undamped rigid mode on a cubic spring never forgets its start (its free
+        // oscillation's frequency depends on its amplitude): damped to the ground, 30 % of
+        // critical at the equivalent stiffness, started from rest
+        let b = 0.6 * jt * (0.3f64).sqrt() * 2.0 * std::f64::consts::PI * 5.0;
+        let mut lin = lin;
+        lin.motor_b = b;
+        let got = simulate(&lin, Nl::GroundCubic { k3 }, &u, fs, 8).vel;
+        let free = simulate(&lin, Nl::None, &u, fs, 8);
+        // the reference: x = (q1, q2, v1, v2)
+        let (j1, j2, c, d) = (1e-3, 2e-3, 400.0, 0.02);
+        let f = |x: [f64; 4], tq: f64| {
+            let spring = c * (x[1] - x[0]) + d * (x[3] - x[2]);
+            [
+                x[2],
+                x[3],
+                (tq + spring - b * x[2]) / j1,
+                (-spring - k3 * x[1].powi(3)) / j2,
+            ]
+        };
+        let mut x = [0.0; 4];
+        let steps = 200;
+        let h = 1.0 / fs / steps as f64;
+        let mut want = Vec::with_capacity(n_samples);
+        for &tq in &u {
+            want.push(x[2]);
+            for _ in 0..steps {
+                let add = |a: [f64; 4], b: [f64; 4], s: f64| {
+                    [a[0] + s * b[0], a[1] + s * b[1], a[2] + s * b[2], a[3] + s * b[3]]
+                };
+                let k1 = f(x, tq);
+                let k2 = f(add(x, k1, h / 2.0), tq);
+                let k3_ = f(add(x, k2, h / 2.0), tq);
+                let k4 = f(add(x, k3_, h), tq);
+                for i in 0..4 {
+                    x[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3_[i] + k4[i]);
+                }
+            }
+        }
+        // after the start's transient (1/e time J_t/b = 0.09 s)
+        let late = n_samples / 4;
+        let effect = rms_diff(&free.vel[late..], &want[late..]);
+        let err = rms_diff(&got[late..], &want[late..]);
+        assert!(effect > 0.0 && err < 0.02 * effect, "error {err} vs effect {effect}");
+    }
 }
+

@@ -41,7 +41,9 @@ pub fn sim_model_steady(
             };
             // the spring nonlinearities act at the gear's frequency: finer sub-steps
             let sub = match nl {
-                Nl::Backlash { .. } | Nl::Hardening { .. } => data.spring_substeps,
+                Nl::Backlash { .. } | Nl::Hardening { .. } | Nl::GroundCubic { .. } => {
+                    data.spring_substeps
+                }
                 _ => data.substeps,
             };
             let out = simulate(lin, nl, &u[..n], data.fs, sub);

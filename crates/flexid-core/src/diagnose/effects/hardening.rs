@@ -1,12 +1,22 @@
-//! `hardening_stiffness`: a coupling whose stiffness rises with deflection,
-//! `c x (1 + (x/x_ref)²)`, searched on each coupling. Its describing function
-//! ([`stiffening`]) turns the per-level linear fits into a start for the small-signal
-//! stiffness and `x_ref`, which the simulation then refines ([`fit_spring`]).
+//! `hardening_stiffness`: a stiffness that rises with deflection, in either of two places:
+//!
+//! * a coupling, `c x (1 + (x/x_ref)²)`, searched on each coupling. Its describing
+//!   function ([`stiffening`]) turns the per-level linear fits into a start for the
+//!   small-signal stiffness and `x_ref`, which the simulation then refines
+//!   ([`fit_spring`]);
+//! * a cubic spring from the load to the ground, `-k3 q³` (a Duffing oscillator, as in the
+//!   Silverbox), [`fit_ground`]: one parameter searched by simulation over the range where
+//!   its equivalent stiffness `3 k3 σ²` (Gaussian load position of RMS `σ` at the highest
+//!   level) lies between 1 % and 100 times `J_t ω_min²`, the stiffness that would put a
+//!   ground resonance at the lowest excited line: below it the spring is invisible in the
+//!   band, above it the nominal free chain would not have fitted the low lines at all.
+//!
+//! The better of the two (lower chi²) is the candidate; its parameters say which.
 
 use super::EffectFit;
 use crate::diagnose::lti::LinExt;
-use crate::diagnose::nlsim::Nl;
-use crate::diagnose::search::{fit_spring, Spring};
+use crate::diagnose::nlsim::{simulate, Nl};
+use crate::diagnose::search::{fit_nonlinear, fit_spring, Spring};
 use crate::diagnose::Data;
 use crate::diagnose::Effect;
 
@@ -30,16 +40,66 @@ pub const SPRING: Spring = Spring {
     refine_evals: [40, 24],
 };
 
-/// Identify a hardening spring on the data, from the nominal chain.
+/// Identify a hardening spring on the data, from the nominal chain: in a coupling or to
+/// the ground, whichever fits better.
 pub fn fit(data: &Data, nominal: &LinExt) -> Option<EffectFit> {
-    fit_spring(
+    let coupling = fit_spring(
         data,
         nominal,
         Effect::HardeningStiffness,
         "x_ref_rad",
         &SPRING,
         |k, xref| Nl::Hardening { k, xref },
-    )
+    );
+    let ground = fit_ground(data, nominal);
+    [coupling, ground]
+        .into_iter()
+        .flatten()
+        .min_by(|a, b| a.chi2.total_cmp(&b.chi2))
+}
+
+/// Equivalent stiffness of `k3 q³` under a Gaussian position of RMS `sigma_rad`
+/// (statistical linearisation: the mean slope `3 k3 σ²`) [N m/rad].
+pub fn ground_equivalent(k3: f64, sigma_rad: f64) -> f64 {
+    3.0 * k3 * sigma_rad * sigma_rad
+}
+
+/// A cubic spring from the load to the ground (see the module's documentation); `None`
+/// when the chain has none of the motion it needs (no excitation, a chain already tied to
+/// the ground by a linear spring is not free but is still tried).
+pub fn fit_ground(data: &Data, nominal: &LinExt) -> Option<EffectFit> {
+    let top = (0..data.levels.len()).max_by(|&a, &b| {
+        data.levels[a]
+            .torque_rms
+            .total_cmp(&data.levels[b].torque_rms)
+    })?;
+    // the load's motion at the highest level as the nominal chain moves it (the motor's
+    // position stands for it: the ground spring matters at the lowest lines, where the
+    // chain moves as one body)
+    let u = &data.levels[top].rec.torque_cmd_nm;
+    let pos = simulate(nominal, Nl::GroundCubic { k3: 0.0 }, u, data.fs, 1).pos;
+    let mean = pos.iter().sum::<f64>() / pos.len().max(1) as f64;
+    let sigma = (pos.iter().map(|p| (p - mean).powi(2)).sum::<f64>() / pos.len().max(1) as f64)
+        .sqrt();
+    if !(sigma > 0.0 && sigma.is_finite()) {
+        return None;
+    }
+    let k_ref =
+        nominal.chain.total_inertia() * (2.0 * std::f64::consts::PI * data.f_min()).powi(2);
+    let k3_of = |ratio: f64| ratio * k_ref / ground_equivalent(1.0, sigma);
+    let mut e = fit_nonlinear(
+        data,
+        nominal,
+        Effect::HardeningStiffness,
+        "ground_k3_nm_per_rad3",
+        k3_of(1e-2),
+        k3_of(1e2),
+        false,
+        |k3| Nl::GroundCubic { k3 },
+    )?;
+    e.params
+        .push(EffectFit::param("to_ground", 1.0, 0.0));
+    Some(e)
 }
 
 #[cfg(test)]

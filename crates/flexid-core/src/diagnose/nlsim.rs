@@ -341,6 +341,63 @@ fn integrate<const N: usize>(s: &Setup, nl: Nl, u: &[f64]) -> SimOut {
     }
 }
 
+/// A stepped-sine recording cut to each block's settle periods and its first `steady`
+/// steady ones (the search's short simulation; a stepped sine's record is long: 40 dwells
+/// of 200 000 samples and more, where a multisine needs one period): the blocks' torque
+/// back to back (and each recorded column cut alike, so that the simulation's motion
+/// goes where the measurement's was), their descriptions moved and shortened to match.
+/// `None` when the recording is not a stepped sine with blocks or is not shorter so.
+/// The block estimator then gives the same lines in the same order; in the steady state
+/// of a noise-free simulation, the same values (the next block starts where the shortened
+/// one ends, as it starts where the full one ends: its settle periods absorb either).
+pub fn shortened_stepped(rec: &Recording, steady: usize) -> Option<Recording> {
+    let info = rec.sidecar.excitation.as_ref()?;
+    if info.blocks.is_empty() || steady == 0 {
+        return None;
+    }
+    let total = rec.torque_cmd_nm.len();
+    let mut ranges = Vec::with_capacity(info.blocks.len());
+    let mut blocks = Vec::with_capacity(info.blocks.len());
+    let mut len = 0;
+    for b in &info.blocks {
+        let keep = steady.min(b.periods);
+        let end = (b.start + (b.settle_periods + keep) * b.period_samples).min(total);
+        if b.start >= end {
+            return None;
+        }
+        let mut nb = b.clone();
+        nb.start = len;
+        nb.periods = keep;
+        len += end - b.start;
+        ranges.push(b.start..end);
+        blocks.push(nb);
+    }
+    if len >= total {
+        return None;
+    }
+    let cut = |x: &[f64]| -> Vec<f64> {
+        ranges
+            .iter()
+            .flat_map(|r| x[r.start.min(x.len())..r.end.min(x.len())].iter().copied())
+            .collect()
+    };
+    let mut sidecar = rec.sidecar.clone();
+    if let Some(e) = sidecar.excitation.as_mut() {
+        e.blocks = blocks;
+    }
+    let fs = rec.sample_rate_hz;
+    Some(Recording {
+        time_s: (0..len).map(|k| k as f64 / fs).collect(),
+        torque_cmd_nm: cut(&rec.torque_cmd_nm),
+        position_rad: rec.position_rad.as_deref().map(cut),
+        velocity_rad_s: rec.velocity_rad_s.as_deref().map(cut),
+        acceleration_rad_s2: rec.acceleration_rad_s2.as_deref().map(cut),
+        torque_actual_nm: rec.torque_actual_nm.as_deref().map(cut),
+        sample_rate_hz: fs,
+        sidecar,
+    })
+}
+
 /// The FRF of the simulated response, estimated exactly as the measurement's (same
 /// recording description, same estimator), on the lines `keep` of that estimate.
 pub fn sim_frf(
@@ -522,10 +579,16 @@ mod tests {
         let u: Vec<f64> = (0..n_samples)
             .map(|k| {
                 let t = k as f64 / fs;
-                [(5.0, 0.3), (11.0, 1.0), (23.0, 2.0), (61.0, 0.5), (140.0, 2.5)]
-                    .iter()
-                    .map(|(f, p)| 0.02 * (2.0 * std::f64::consts::PI * f * t + p).sin())
-                    .sum()
+                [
+                    (5.0, 0.3),
+                    (11.0, 1.0),
+                    (23.0, 2.0),
+                    (61.0, 0.5),
+                    (140.0, 2.5),
+                ]
+                .iter()
+                .map(|(f, p)| 0.02 * (2.0 * std::f64::consts::PI * f * t + p).sin())
+                .sum()
             })
             .collect();
         let lin = LinExt::nominal(chain.clone());
@@ -565,7 +628,12 @@ mod tests {
             want.push(x[2]);
             for _ in 0..steps {
                 let add = |a: [f64; 4], b: [f64; 4], s: f64| {
-                    [a[0] + s * b[0], a[1] + s * b[1], a[2] + s * b[2], a[3] + s * b[3]]
+                    [
+                        a[0] + s * b[0],
+                        a[1] + s * b[1],
+                        a[2] + s * b[2],
+                        a[3] + s * b[3],
+                    ]
                 };
                 let k1 = f(x, tq);
                 let k2 = f(add(x, k1, h / 2.0), tq);
@@ -580,7 +648,71 @@ mod tests {
         let late = n_samples / 4;
         let effect = rms_diff(&free.vel[late..], &want[late..]);
         let err = rms_diff(&got[late..], &want[late..]);
-        assert!(effect > 0.0 && err < 0.02 * effect, "error {err} vs effect {effect}");
+        assert!(
+            effect > 0.0 && err < 0.02 * effect,
+            "error {err} vs effect {effect}"
+        );
+    }
+
+    /// The shortened stepped sine gives the full record's lines (a linear chain, noise
+    /// free: the steady state is the same) in the same order, from a fraction of the
+    /// samples.
+    #[test]
+    fn a_shortened_stepped_sine_gives_the_same_lines() {
+        use crate::excitation::SteppedSineDesign;
+        use crate::recording::Sidecar;
+        let fs = 1000.0;
+        let stepped = SteppedSineDesign {
+            sample_rate_hz: fs,
+            frequencies_hz: vec![3.0, 9.0, 27.0, 81.0, 243.0],
+            min_period_samples: 100,
+            periods: 6,
+            settle_periods: 3,
+            peak_limit_nm: 1.0,
+            rms_limit_nm: 1.0,
+        }
+        .generate()
+        .unwrap();
+        let chain = Chain::new(vec![1e-3, 2e-3], vec![400.0], vec![0.05]).unwrap();
+        let mut lin = LinExt::nominal(chain);
+        // the rigid body settles in J_t/b = 0.06 s, well within a block's settle periods
+        // (with a slower pole the transient left after them differs between the two)
+        lin.motor_b = 0.05;
+        let rec = Recording {
+            time_s: (0..stepped.signal.len()).map(|k| k as f64 / fs).collect(),
+            torque_cmd_nm: stepped.signal.clone(),
+            position_rad: None,
+            velocity_rad_s: None,
+            acceleration_rad_s2: None,
+            torque_actual_nm: None,
+            sample_rate_hz: fs,
+            sidecar: Sidecar {
+                excitation: Some(stepped.info()),
+                ..Sidecar::default()
+            },
+        };
+        // the measured motion (here: zeros) is cut alike, so the simulation knows its column
+        let mut rec = rec;
+        rec.position_rad = Some(vec![0.0; rec.torque_cmd_nm.len()]);
+        let short = shortened_stepped(&rec, 1).unwrap();
+        assert_eq!(short.position_rad.as_ref().unwrap().len(), short.len());
+        assert!(
+            short.len() * 2 < rec.len(),
+            "{} of {}",
+            short.len(),
+            rec.len()
+        );
+        let keep: Vec<usize> = (0..5).collect();
+        let full_out = simulate(&lin, Nl::None, &rec.torque_cmd_nm, fs, 2);
+        let short_out = simulate(&lin, Nl::None, &short.torque_cmd_nm, fs, 2);
+        let full = sim_frf(&rec, None, &keep, &full_out).unwrap();
+        let cut = sim_frf(&short, None, &keep, &short_out).unwrap();
+        for (a, b) in full.iter().zip(&cut) {
+            assert!((a / b - 1.0).norm() < 1e-3, "{a} vs {b}");
+        }
+        // not a stepped sine: nothing to shorten
+        let mut plain = rec.clone();
+        plain.sidecar.excitation = None;
+        assert!(shortened_stepped(&plain, 1).is_none());
     }
 }
-

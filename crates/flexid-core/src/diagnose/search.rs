@@ -32,8 +32,11 @@ pub fn sim_model_steady(
         .levels
         .iter()
         .map(|l| {
-            let u = &l.rec.torque_cmd_nm;
-            let n = match (&l.rec.sidecar.excitation, steady) {
+            // a stepped sine: every block with its settle periods and `k` steady ones
+            let short = steady.and_then(|k| super::nlsim::shortened_stepped(&l.rec, k));
+            let rec = short.as_ref().unwrap_or(&l.rec);
+            let u = &rec.torque_cmd_nm;
+            let n = match (&rec.sidecar.excitation, steady) {
                 (Some(e), Some(k)) if e.period_samples > 0 => {
                     ((e.transient_periods + k) * e.period_samples).min(u.len())
                 }
@@ -47,7 +50,7 @@ pub fn sim_model_steady(
                 _ => data.substeps,
             };
             let out = simulate(lin, nl, &u[..n], data.fs, sub);
-            sim_frf(&l.rec, data.band, &l.keep, &out)
+            sim_frf(rec, data.band, &l.keep, &out)
         })
         .collect::<Option<Vec<Vec<Complex64>>>>()?;
     torque_path_factor(data, lin, &mut model);

@@ -79,13 +79,12 @@ pub fn fit_ground(data: &Data, nominal: &LinExt) -> Option<EffectFit> {
     let u = &data.levels[top].rec.torque_cmd_nm;
     let pos = simulate(nominal, Nl::GroundCubic { k3: 0.0 }, u, data.fs, 1).pos;
     let mean = pos.iter().sum::<f64>() / pos.len().max(1) as f64;
-    let sigma = (pos.iter().map(|p| (p - mean).powi(2)).sum::<f64>() / pos.len().max(1) as f64)
-        .sqrt();
+    let sigma =
+        (pos.iter().map(|p| (p - mean).powi(2)).sum::<f64>() / pos.len().max(1) as f64).sqrt();
     if !(sigma > 0.0 && sigma.is_finite()) {
         return None;
     }
-    let k_ref =
-        nominal.chain.total_inertia() * (2.0 * std::f64::consts::PI * data.f_min()).powi(2);
+    let k_ref = nominal.chain.total_inertia() * (2.0 * std::f64::consts::PI * data.f_min()).powi(2);
     let k3_of = |ratio: f64| ratio * k_ref / ground_equivalent(1.0, sigma);
     let mut e = fit_nonlinear(
         data,
@@ -97,8 +96,7 @@ pub fn fit_ground(data: &Data, nominal: &LinExt) -> Option<EffectFit> {
         false,
         |k3| Nl::GroundCubic { k3 },
     )?;
-    e.params
-        .push(EffectFit::param("to_ground", 1.0, 0.0));
+    e.params.push(EffectFit::param("to_ground", 1.0, 0.0));
     Some(e)
 }
 

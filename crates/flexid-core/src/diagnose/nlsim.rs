@@ -240,6 +240,25 @@ pub fn centred_start(ch: &crate::model::Chain, u: &[f64], fs: f64) -> Vec<f64> {
     x
 }
 
+/// The torque of a cubic spring nonlinearity beyond the linear chain, on its input column
+/// (held over the sub-step, extrapolated by the caller): the hardening coupling's `c x
+/// (x/x_ref)²` on coupling `k`'s deflection, the ground spring's `-k3 q³` on the load's
+/// position; `None` for the other effects.
+fn cubic_correction(nl: Nl, x: &[f64], n: usize, k: usize, c: f64) -> Option<f64> {
+    match nl {
+        Nl::Hardening { xref, .. } if n > 1 => {
+            let dx = x[k + 1] - x[k];
+            let r = dx / xref;
+            Some(c * dx * r * r)
+        }
+        Nl::GroundCubic { k3 } => {
+            let q = x[n - 1];
+            Some(-k3 * q * q * q)
+        }
+        _ => None,
+    }
+}
+
 /// The time loop of [`simulate`], `N` states (`N = 0`: any number).
 fn integrate<const N: usize>(s: &Setup, nl: Nl, u: &[f64]) -> SimOut {
     let Setup {
@@ -253,10 +272,8 @@ fn integrate<const N: usize>(s: &Setup, nl: Nl, u: &[f64]) -> SimOut {
         ref start,
     } = *s;
     let ns = bm.len();
-    let mut x: Vec<f64> = vec![0.0; ns];
-    for (x, s) in x.iter_mut().zip(start) {
-        *x = *s;
-    }
+    let mut x: Vec<f64> = start.clone();
+    x.resize(ns, 0.0);
     let mut xn: Vec<f64> = vec![0.0; ns];
     let mut xt: Vec<f64> = vec![0.0; ns];
     let mut pos = Vec::with_capacity(u.len());
@@ -297,20 +314,13 @@ fn integrate<const N: usize>(s: &Setup, nl: Nl, u: &[f64]) -> SimOut {
                         std::mem::swap(&mut xt, &mut xn);
                     }
                 }
-                (Nl::Hardening { xref, .. }, _) if n > 1 => {
-                    let dx = x[k + 1] - x[k];
-                    let r = dx / xref;
-                    let fc = c * dx * r * r;
-                    lin_p.apply::<N>(&x, &mut xn, uk, 1.5 * fc - 0.5 * fc_prev);
-                    fc_prev = fc;
-                }
-                (Nl::GroundCubic { k3 }, _) => {
-                    let q = x[n - 1];
-                    let fc = -k3 * q * q * q;
-                    lin_p.apply::<N>(&x, &mut xn, uk, 1.5 * fc - 0.5 * fc_prev);
-                    fc_prev = fc;
-                }
-                _ => lin_p.apply::<N>(&x, &mut xn, uk, 0.0),
+                _ => match cubic_correction(nl, &x, n, k, c) {
+                    Some(fc) => {
+                        lin_p.apply::<N>(&x, &mut xn, uk, 1.5 * fc - 0.5 * fc_prev);
+                        fc_prev = fc;
+                    }
+                    None => lin_p.apply::<N>(&x, &mut xn, uk, 0.0),
+                },
             }
             if let Nl::Friction { tc } = nl {
                 let b = bm[n];

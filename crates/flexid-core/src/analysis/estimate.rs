@@ -61,8 +61,8 @@ fn stepped_blocks(rec: &Recording) -> Option<&[crate::excitation::SteppedBlock]>
 /// Position is differenced to velocity (never `j w` times the DFT of a drifting position);
 /// periodic excitation uses the per-line periodic estimator with its variance, a stepped
 /// sine with its blocks the same estimator block by block, a single sweep the local
-/// polynomial method, anything else the Welch H1 estimator with coherence. The result is limited to the excited band, or to
-/// `band_hz` when given.
+/// polynomial method, anything else the Welch H1 estimator with coherence. The result is
+/// limited to the excited band, or to `band_hz` when given.
 pub fn estimate_frf(
     rec: &Recording,
     band_hz: Option<[f64; 2]>,
@@ -105,7 +105,8 @@ pub fn estimate_frf(
             choices,
         }
     } else if let Some(info) = single_sweep(rec) {
-        let frf = frf::estimate_lpm(u, &y, fs, kind, info.band_hz.or(band_hz))?;
+        // the user's band first, else the sweep's own
+        let frf = frf::estimate_lpm(u, &y, fs, kind, band_hz.or(info.band_hz))?;
         let q = frf::lpm_dof();
         let width = 2 * frf::lpm::HALF_WIDTH + 1;
         let choices = format!(

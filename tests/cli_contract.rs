@@ -423,6 +423,26 @@ fn missing_file_and_nonsense_options() {
         !dir.join("E.csv").exists(),
         "a rejected excitation was written"
     );
+    // issue 16: a cap beyond what a duration holds panicked; it is no cap
+    let out = flexid(
+        &[
+            "identify",
+            "REC.csv",
+            "--max-seconds",
+            "1e300",
+            "--json",
+            "cap.json",
+        ],
+        dir,
+    );
+    let se = text(&out.stderr);
+    assert!(!se.contains("panicked"), "--max-seconds 1e300: panic\n{se}");
+    assert!(
+        out.status.success(),
+        "--max-seconds 1e300: {:?}\n{se}",
+        out.status
+    );
+    assert!(dir.join("cap.json").is_file());
 }
 
 #[test]

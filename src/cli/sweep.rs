@@ -125,7 +125,11 @@ pub fn plan(a: &SweepArgs) -> Result<SweepPlan, CliError> {
                 "--max-duration-s {d}: must be positive"
             )));
         }
-        p.max_duration = Some(Duration::from_secs_f64(d));
+        p.max_duration = Some(Duration::try_from_secs_f64(d).map_err(|_| {
+            CliError::input(format!(
+                "--max-duration-s {d}: too large for a duration (at most about 1.8e19 s)"
+            ))
+        })?);
     }
     if let Some(n) = a.max_lost {
         p.max_lost_tpdos = n;

@@ -73,9 +73,11 @@ impl DriveJob {
         if let Some(n) = axis.limits.max_lost_tpdos {
             sp.max_lost_tpdos = n;
         }
-        sp.max_duration = Some(Duration::from_secs_f64(
-            axis.limits.max_sweep_s.max(sp.duration_s()) + 5.0,
-        ));
+        // a limit beyond what a Duration holds is no limit (never a panic)
+        sp.max_duration = Some(
+            Duration::try_from_secs_f64(axis.limits.max_sweep_s.max(sp.duration_s()) + 5.0)
+                .unwrap_or(Duration::MAX),
+        );
         let (tx, rx) = mpsc::channel(256);
         let abort = AbortSignal::default();
         let job = DriveJob {

@@ -83,9 +83,13 @@ impl FitBudget {
         Self::new(None)
     }
 
-    /// Capped at `max_seconds` from now.
+    /// Capped at `max_seconds` from now; a cap longer than a `Duration` holds (about 5.8e11
+    /// years, `1e300`, infinity) is no cap; zero, a negative or a NaN cap has passed at once.
     pub fn with_cap_s(max_seconds: f64) -> Self {
-        Self::new(Some(Duration::from_secs_f64(max_seconds.max(0.0))))
+        if max_seconds.is_nan() || max_seconds <= 0.0 {
+            return Self::new(Some(Duration::ZERO));
+        }
+        Self::new(Duration::try_from_secs_f64(max_seconds).ok())
     }
 
     /// A fresh budget with the same cap, counting from now.
@@ -228,6 +232,23 @@ pub(super) fn fit_each_order(
 
 #[cfg(test)]
 mod tests {
+
+    /// Issue 16: `--max-seconds 1e300` panicked in `Duration::from_secs_f64`.
+    #[test]
+    fn an_absurd_cap_is_no_cap_and_a_nonpositive_one_has_passed() {
+        for huge in [1e300, f64::INFINITY, 1e20] {
+            let b = FitBudget::with_cap_s(huge);
+            assert!(!b.expired(), "{huge}");
+            assert_eq!(b.snapshot().max_seconds, None, "{huge}");
+        }
+        for none in [0.0, -1.0, f64::NAN] {
+            assert!(FitBudget::with_cap_s(none).expired(), "{none}");
+        }
+        let b = FitBudget::with_cap_s(3600.0);
+        assert!(!b.expired());
+        assert_eq!(b.snapshot().max_seconds, Some(3600.0));
+    }
+
     use super::*;
 
     #[test]

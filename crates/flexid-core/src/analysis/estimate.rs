@@ -128,6 +128,15 @@ pub fn estimate_frf(
             choices,
         }
     } else if let Some(info) = periodic {
+        // nothing sized by the description before it is checked against the record
+        if info.period_samples > u.len() {
+            return Err(frf::FrfError::TooShort {
+                needed: info.period_samples,
+                got: u.len(),
+                unit: "samples (one period of the sidecar's excitation)",
+            }
+            .into());
+        }
         let repeating = quantum.map(|q| {
             let n = info.period_samples;
             let start = (info.transient_periods * n).min(signal.len());

@@ -218,6 +218,7 @@ pub fn read_recording_from<R: BufRead>(
     }
     let n = lines.len();
     let mut sidecar = sidecar.unwrap_or_default();
+    check_excitation_fits(&sidecar, n, path)?;
     let [time, torque, pos, vel, acc, tact] = cols;
     let time = if present[TIME] {
         check_increasing(&time, &lines, path)?;
@@ -287,6 +288,43 @@ pub fn read_recording_from<R: BufRead>(
         },
         warnings,
     })
+}
+
+/// The sidecar's excitation against the rows read: a period or a dwell block that the
+/// record cannot hold is a contradiction, refused before anything is sized by it (issue
+/// 16: `period_samples` of 1.5e9 made the estimator allocate 24 GB and abort); unless the
+/// sidecar says the sweep ended early (`end.complete: false`), whose rows are kept
+/// whatever their number (the estimators then refuse the record as too short).
+fn check_excitation_fits(
+    sidecar: &Sidecar,
+    rows: usize,
+    path: &Path,
+) -> Result<(), RecordingError> {
+    let Some(e) = &sidecar.excitation else {
+        return Ok(());
+    };
+    if sidecar.end.as_ref().is_some_and(|end| !end.complete) {
+        return Ok(());
+    }
+    let err = |message: String| RecordingError::Sidecar {
+        path: path.to_path_buf(),
+        message,
+    };
+    if e.period_samples > rows {
+        return Err(err(format!(
+            "excitation.period_samples {} is longer than the recording ({rows} rows)",
+            e.period_samples
+        )));
+    }
+    for (i, b) in e.blocks.iter().enumerate() {
+        if b.period_samples == 0 || b.period_samples > rows || b.start >= rows {
+            return Err(err(format!(
+                "excitation.blocks[{i}]: start {} and period_samples {} do not fit the recording ({rows} rows)",
+                b.start, b.period_samples
+            )));
+        }
+    }
+    Ok(())
 }
 
 enum BadField {
@@ -362,4 +400,34 @@ fn check_uniform(t: &[f64], lines: &[usize], med: f64, path: &Path) -> Result<()
         }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const CSV: &str =
+        "time_s,torque_cmd_nm,position_rad\n0,0,0\n0.001,1,0\n0.002,0,0.001\n0.003,-1,0\n";
+
+    /// Issue 16: an absurd `period_samples` made the estimator allocate 24 GB and abort; the
+    /// reader refuses a period or a block the record cannot hold, naming the key.
+    #[test]
+    fn a_period_longer_than_the_record_is_refused() {
+        let sidecar = |period: &str| {
+            format!(
+                r#"{{"sample_rate_hz": 1000.0, "excitation": {{"kind": "multisine", "period_samples": {period}, "periods": 1, "transient_periods": 0, "excited_lines": [1]}}}}"#
+            )
+        };
+        let e = parse_recording(CSV, Some(&sidecar("1500000000"))).unwrap_err();
+        assert!(matches!(e, RecordingError::Sidecar { .. }), "{e}");
+        assert!(e.to_string().contains("period_samples 1500000000"), "{e}");
+        // a period the record holds is read
+        assert!(parse_recording(CSV, Some(&sidecar("2"))).is_ok());
+        // an interrupted sweep keeps its rows, whole period or not
+        let cut = sidecar("2000").replace(
+            r#""sample_rate_hz""#,
+            r#""end": {"complete": false, "reason": "drive fault", "cycle": 4}, "sample_rate_hz""#,
+        );
+        assert!(parse_recording(CSV, Some(&cut)).is_ok(), "{cut}");
+    }
 }

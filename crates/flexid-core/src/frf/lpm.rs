@@ -88,8 +88,9 @@ pub fn estimate_lpm(
             unit: "samples",
         });
     }
+    // one plan for both signals
+    let fft = RealFftPlanner::<f64>::new().plan_fft_forward(n);
     let spectrum = |x: &[f64]| {
-        let fft = RealFftPlanner::<f64>::new().plan_fft_forward(n);
         let mut input = x.to_vec();
         let mut out = fft.make_output_vec();
         fft.process(&mut input, &mut out)

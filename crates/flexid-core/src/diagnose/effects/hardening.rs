@@ -64,9 +64,9 @@ pub fn ground_equivalent(k3: f64, sigma_rad: f64) -> f64 {
     3.0 * k3 * sigma_rad * sigma_rad
 }
 
-/// A cubic spring from the load to the ground (see the module's documentation); `None`
-/// when the chain has none of the motion it needs (no excitation, a chain already tied to
-/// the ground by a linear spring is not free but is still tried).
+/// A cubic spring from the load to the ground (see the module's documentation), on top of
+/// whatever the nominal model already ties to the ground; `None` when the nominal chain
+/// does not move under the recorded torque (no range to search) or no fit is found.
 pub fn fit_ground(data: &Data, nominal: &LinExt) -> Option<EffectFit> {
     let top = (0..data.levels.len()).max_by(|&a, &b| {
         data.levels[a]

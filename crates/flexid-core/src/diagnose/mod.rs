@@ -17,6 +17,7 @@ pub mod lti;
 pub mod nlsim;
 pub mod noise;
 pub mod rank;
+mod renominal;
 pub mod search;
 pub mod select;
 pub mod simplex;
@@ -455,29 +456,100 @@ pub fn diagnose(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Diagnosis,
     let n = opts.masses.max(1);
     let mut idents = Vec::new();
     let nom_lin = fit_nominal(&data, n, opts.band_hz, &mut idents)?;
-    let viscous = effects::viscous::nominal_with_viscous(&data, &nom_lin, &idents);
+    let mut pass = diagnose_from(&data, &nom_lin, None, &idents, opts, &mut stage);
+    // a candidate whose own parameter is not significant is the nominal model, fitted
+    // better (its extension's path led the chain out of a basin the nominal fit stayed
+    // in): when that lowers the nominal chi² by more than a parameter's BIC price, the
+    // diagnosis is made again from it (once)
+    if let Some((better, from, chi2)) = renominal::better_nominal(&data, &pass.nominal, &pass.fits)
+    {
+        let note = format!(
+            "nominal model refitted from the {from} fit, whose own parameter is not significant: chi2 {:.4e} -> {:.4e}; the diagnosis is made from it",
+            pass.nominal.chi2, chi2
+        );
+        idents.push(better.chain.clone());
+        let without_b = renominal::refit_without_damper(&data, &better);
+        pass = diagnose_from(&data, &without_b, Some(&better), &idents, opts, &mut stage);
+        pass.notes.insert(0, note);
+    }
+    Ok(pass.into_diagnosis(n, data, t0.elapsed().as_secs_f64(), stage.stages))
+}
+
+/// One diagnosis from a nominal chain: the parts of [`Diagnosis`] that depend on it.
+struct Pass {
+    verdict: Effect,
+    effects: Vec<Step>,
+    nominal: EffectFit,
+    ranking: Vec<rank::Ranked>,
+    winner: Option<EffectFit>,
+    gap: Gap,
+    residual: ResidualKind,
+    notes: Vec<String>,
+    /// Every candidate fitted on its own.
+    fits: Vec<EffectFit>,
+}
+
+impl Pass {
+    fn into_diagnosis(
+        self,
+        masses: usize,
+        data: Data,
+        seconds: f64,
+        stage_cpu_s: Vec<(&'static str, f64)>,
+    ) -> Diagnosis {
+        Diagnosis {
+            verdict: self.verdict,
+            effects: self.effects,
+            masses,
+            nominal: self.nominal,
+            ranking: self.ranking,
+            winner: self.winner,
+            gap: self.gap,
+            residual: self.residual,
+            data,
+            notes: self.notes,
+            seconds,
+            stage_cpu_s,
+            trajectory: None,
+        }
+    }
+}
+
+/// The diagnosis from the nominal chain `nom_lin` (fitted without the motor's damper;
+/// `viscous_start`: a fit with it to start the damper's fit from as well): the damper
+/// decided, the candidates fitted and ranked, the forward selection, the verdict.
+fn diagnose_from(
+    data: &Data,
+    nom_lin: &LinExt,
+    viscous_start: Option<&LinExt>,
+    idents: &[crate::model::Chain],
+    opts: &DiagnoseOptions,
+    stage: &mut StageClock,
+) -> Pass {
+    let n = opts.masses.max(1);
+    let viscous = effects::viscous::nominal_with_viscous(data, nom_lin, viscous_start, idents);
     let nom_lin = viscous.nominal.clone();
-    let nominal = effects::finish_linear(&data, Effect::None, nom_lin.clone(), vec![], 0);
+    let nominal = effects::finish_linear(data, Effect::None, nom_lin.clone(), vec![], 0);
     stage.lap("nominal");
 
     // what the residual is made of
-    let residual = residual_kind(&data, &nominal);
+    let residual = residual_kind(data, &nominal);
     stage.lap("residual");
 
-    let mut candidates = Candidates::new(&mut stage);
-    fit_linear_candidates(&data, &nom_lin, &idents, &mut candidates);
+    let mut candidates = Candidates::new(stage);
+    fit_linear_candidates(data, &nom_lin, idents, &mut candidates);
     if let (false, Some((with, _))) = (viscous.significant, &viscous.with_viscous) {
         // viscous friction not significant on the nominal chain alone (a large gap
         // elsewhere can hide it): each linear effect is also tried on top of it, the
         // damping counted as one more parameter
-        fit_linear_candidates_with_viscous(&data, with, &mut candidates);
+        fit_linear_candidates_with_viscous(data, with, &mut candidates);
     }
     let with_viscous = match (viscous.significant, &viscous.with_viscous) {
         (false, Some((with, _))) => Some(with),
         _ => None,
     };
     let ground_as_gravity = fit_extra_mode(
-        &data,
+        data,
         &nominal,
         &nom_lin,
         with_viscous,
@@ -486,7 +558,7 @@ pub fn diagnose(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Diagnosis,
         &mut candidates,
     );
     fit_amplitude_candidates(
-        &data,
+        data,
         &nom_lin,
         &residual,
         opts.force_nonlinear,
@@ -495,9 +567,9 @@ pub fn diagnose(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Diagnosis,
     let (mut fits, mut notes) = (candidates.fits, candidates.notes);
     notes.insert(0, viscous.note.clone());
     keep_better_gravity(&mut fits, ground_as_gravity);
-    gravity_beyond_viscous(&data, &mut fits, &viscous, &mut notes);
+    gravity_beyond_viscous(data, &mut fits, &viscous, &mut notes);
 
-    let (ranking, first) = rank::rank(&data, &nominal, &fits, &residual);
+    let (ranking, first) = rank::rank(data, &nominal, &fits, &residual);
     // several effects at once: forward selection from the best significant candidate,
     // over the candidates that improved on the nominal model significantly on their own
     // (a screen: a candidate that explains nothing alone is not tried on top of another)
@@ -509,7 +581,7 @@ pub fn diagnose(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Diagnosis,
     let steps = match first {
         Some(i) => {
             let (steps, more) =
-                select::forward(&data, nominal.chi2, fits[i].clone(), |d, base, named| {
+                select::forward(data, nominal.chi2, fits[i].clone(), |d, base, named| {
                     fit_next(d, base, named, &marginal, opts, n)
                 });
             notes.extend(more);
@@ -522,7 +594,7 @@ pub fn diagnose(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Diagnosis,
     // real but unexplained
     let explained = steps
         .last()
-        .map(|s| rank::explained_fraction(&data, nominal.chi2, s.fit.chi2));
+        .map(|s| rank::explained_fraction(data, nominal.chi2, s.fit.chi2));
     let effects = match explained {
         Some(x) if x > rank::EXPLAINS => steps,
         Some(x) => {
@@ -543,23 +615,19 @@ pub fn diagnose(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Diagnosis,
         None => Effect::None,
     };
     let winner = effects.first().map(|s| s.fit.clone());
-    let gap = gap_of(&data, &nominal, effects.last().map(|s| &s.fit));
+    let gap = gap_of(data, &nominal, effects.last().map(|s| &s.fit));
     stage.lap("rank");
-    Ok(Diagnosis {
+    Pass {
         verdict,
         effects,
-        masses: n,
         nominal,
         ranking,
         winner,
         gap,
         residual,
-        data,
         notes,
-        seconds: t0.elapsed().as_secs_f64(),
-        stage_cpu_s: stage.stages,
-        trajectory: None,
-    })
+        fits,
+    }
 }
 
 /// The candidates for the next step of the forward selection on `data` (the measurement,

@@ -32,10 +32,12 @@ pub struct ViscousNominal {
 /// which and why. Started from the nominal chain and from the identifications `idents`
 /// (the chains the nominal fit started from): a nominal chain fitted without the damper
 /// can have bent into a basin (a soft extra pair mimicking the ground damping) that the
-/// damper alone does not leave.
+/// damper alone does not leave. `fitted`: a fit with the damper to start from as it is
+/// (a better nominal model found by a candidate's fit).
 pub fn nominal_with_viscous(
     data: &Data,
     nominal: &LinExt,
+    fitted: Option<&LinExt>,
     idents: &[crate::model::Chain],
 ) -> ViscousNominal {
     let jt = nominal.chain.total_inertia();
@@ -51,6 +53,7 @@ pub fn nominal_with_viscous(
             starts.push(s);
         }
     }
+    starts.extend(fitted.filter(|f| f.motor_b > 0.0).cloned());
     let Some((m, r)) = fit_best_start(data, Lin::Viscous, &starts, 40, 2) else {
         return ViscousNominal {
             nominal: nominal.clone(),

@@ -796,16 +796,27 @@ impl<'a> Candidates<'a> {
 
     /// Record the fit of `effect` (`None`: it could not be fitted).
     fn push(&mut self, fit: Option<EffectFit>, effect: Effect) {
+        self.lap(effect);
+        match fit {
+            Some(f) => self.fits.push(f),
+            None => self.notes.push(format!("{effect}: no fit")),
+        }
+    }
+
+    /// Record that `effect` was fitted but is not a candidate, and why.
+    fn skip(&mut self, effect: Effect, why: String) {
+        self.lap(effect);
+        self.notes.push(why);
+    }
+
+    /// Close the stage of `effect`: its wall time as a note, its CPU time as a stage.
+    fn lap(&mut self, effect: Effect) {
         self.notes.push(format!(
             "{effect}: {:.2} s",
             self.clock.elapsed().as_secs_f64()
         ));
         self.stage.lap(effect.name());
         self.clock = std::time::Instant::now();
-        match fit {
-            Some(f) => self.fits.push(f),
-            None => self.notes.push(format!("{effect}: no fit")),
-        }
     }
 
     /// Whether a candidate already leaves only noise.
@@ -926,11 +937,29 @@ fn fit_extra_mode(
             }
         }
     }
-    let ground_as_gravity = mode_fit
-        .as_ref()
-        .and_then(|mf| effects::gravity::from_ground_body(data, &mf.lin.chain));
-    c.push(mode_fit, Effect::UnmodelledMode);
-    ground_as_gravity
+    let Some(mf) = mode_fit else {
+        c.push(None, Effect::UnmodelledMode);
+        return None;
+    };
+    match effects::gravity::from_ground_mode(&mf) {
+        // the extra body is the ground: the fit is gravity's (refitted as such too; the
+        // better of the two), and no unmodelled mode
+        Some(same) => {
+            c.skip(Effect::UnmodelledMode, format!(
+                "unmodelled_mode: its extra body ({:.3e} kg m2) is the ground (20 times the rest of the chain): the fit is a restoring stiffness, taken as gravity",
+                mf.lin.chain.inertia_kgm2.last().copied().unwrap_or(f64::NAN)
+            ));
+            let refit = effects::gravity::from_ground_body(data, &mf.lin.chain);
+            Some(match refit {
+                Some(r) if r.chi2 < same.chi2 => r,
+                _ => same,
+            })
+        }
+        None => {
+            c.push(Some(mf), Effect::UnmodelledMode);
+            None
+        }
+    }
 }
 
 /// The amplitude-dependent candidates (simulated in the time domain): Coulomb friction,

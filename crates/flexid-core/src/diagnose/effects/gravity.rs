@@ -83,6 +83,38 @@ pub fn from_ground_body(data: &Data, chain: &Chain) -> Option<EffectFit> {
     Some(finish(data, m, &r))
 }
 
+/// An extra-body fit whose new body is the ground ([`ends_in_ground`]) *is* a restoring
+/// stiffness: within the band a body that heavy does not move, and its spring acts from
+/// the load to the ground. The same fit (model and chi²), named gravity, its spring as
+/// `m g l` and its damper as the load-ground damping (the heavy inertia is no parameter
+/// the data can fix: two are added, as for gravity). `None` when the last body is not
+/// such a ground.
+pub fn from_ground_mode(mode: &EffectFit) -> Option<EffectFit> {
+    let ch = &mode.lin.chain;
+    if !ends_in_ground(ch) {
+        return None;
+    }
+    let k = *ch.stiffness_nm_per_rad.last()?;
+    let c = *ch.damping_nms_per_rad.last()?;
+    Some(EffectFit {
+        effect: Effect::Gravity,
+        params: vec![
+            Param {
+                name: "m_g_l_nm".into(),
+                value: k,
+                std: f64::NAN,
+            },
+            Param {
+                name: "damping_load_ground_nms_per_rad".into(),
+                value: c,
+                std: f64::NAN,
+            },
+        ],
+        added: 2,
+        ..mode.clone()
+    })
+}
+
 fn finish(data: &Data, m: LinExt, r: &crate::lsq::LmResult) -> EffectFit {
     let i0 = 3 * m.chain.masses() - 2;
     let p = vec![
@@ -98,4 +130,36 @@ fn finish(data: &Data, m: LinExt, r: &crate::lsq::LmResult) -> EffectFit {
         },
     ];
     finish_linear(data, Effect::Gravity, m, p, 2)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::diagnose::tests_support::exact_data;
+
+    /// An extra-body fit whose body is 1e4 times the chain is gravity (same chi², its
+    /// spring as `m g l`); a light extra body stays a mode.
+    #[test]
+    fn a_mode_whose_body_is_the_ground_is_gravity() {
+        let chain = |je: f64| {
+            Chain::new(vec![2e-3, 5e-3, je], vec![300.0, 2.5], vec![0.02, 0.004]).unwrap()
+        };
+        let heavy = LinExt::nominal(chain(70.0));
+        let (data, _) = exact_data(&heavy, 2000.0, &[2.0, 400.0], 60);
+        let mode = finish_linear(&data, Effect::UnmodelledMode, heavy, vec![], 3);
+        let g = from_ground_mode(&mode).expect("the ground");
+        assert_eq!(g.effect, Effect::Gravity);
+        assert_eq!(g.added, 2);
+        assert_eq!(g.chi2, mode.chi2);
+        assert_eq!(g.params[0].name, "m_g_l_nm");
+        assert_eq!(g.params[0].value, 2.5);
+        let light = finish_linear(
+            &data,
+            Effect::UnmodelledMode,
+            LinExt::nominal(chain(1e-3)),
+            vec![],
+            3,
+        );
+        assert!(from_ground_mode(&light).is_none());
+    }
 }

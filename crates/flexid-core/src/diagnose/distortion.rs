@@ -31,8 +31,18 @@ pub struct LevelChange {
     pub mean_z2: f64,
     /// RMS of `20 log10 |H_a / H_b|` [dB] over the common lines.
     pub rms_db: f64,
-    /// Significant at the 1e-6 level (mean z² of n exponential draws).
+    /// Significant at the 1e-6 level (mean z² of n exponential draws); the residual's
+    /// judgement adds the localised scan of [`LevelChange::line_z2`]
+    /// ([`super::scan`]).
     pub significant: bool,
+    /// The common lines [Hz], their `z²` and the `d` of each one's `F(2, d)` under noise
+    /// alone (Welch-Satterthwaite from the two variances' own `d`), for the scan.
+    #[serde(skip)]
+    pub line_hz: Vec<f64>,
+    #[serde(skip)]
+    pub line_z2: Vec<f64>,
+    #[serde(skip)]
+    pub line_dof: Vec<f64>,
 }
 
 pub fn level_distortion(
@@ -77,17 +87,20 @@ pub fn level_distortion(
     }
 }
 
+/// One level's lines for [`level_change`]: frequencies [Hz], FRF, variances and the `d`
+/// of the variances (`2(P - 1)`, [`super::noise::dof`]).
+pub struct LevelLines<'a> {
+    pub f: &'a [f64],
+    pub h: &'a [Complex64],
+    pub var: &'a [f64],
+    pub dof: f64,
+}
+
 /// FRF change between two levels on their common lines (matched by frequency).
-pub fn level_change(
-    a: usize,
-    b: usize,
-    fa: &[f64],
-    ha: &[Complex64],
-    va: &[f64],
-    fb: &[f64],
-    hb: &[Complex64],
-    vb: &[f64],
-) -> LevelChange {
+pub fn level_change(a: usize, b: usize, la: &LevelLines, lb: &LevelLines) -> LevelChange {
+    let (fa, ha, va) = (la.f, la.h, la.var);
+    let (fb, hb, vb) = (lb.f, lb.h, lb.var);
+    let (mut line_hz, mut line_z2, mut line_dof) = (Vec::new(), Vec::new(), Vec::new());
     let (mut sz, mut sdb, mut n) = (0.0, 0.0, 0usize);
     let mut j = 0;
     for i in 0..fa.len() {
@@ -97,7 +110,11 @@ pub fn level_change(
         if j < fb.len() && (fb[j] - fa[i]).abs() <= 1e-9 * fa[i].abs().max(1.0) {
             let v = va[i] + vb[j];
             if v.is_finite() && v > 0.0 {
-                sz += (ha[i] - hb[j]).norm_sqr() / v;
+                let z2 = (ha[i] - hb[j]).norm_sqr() / v;
+                sz += z2;
+                line_hz.push(fa[i]);
+                line_z2.push(z2);
+                line_dof.push(v * v / (va[i] * va[i] / la.dof + vb[j] * vb[j] / lb.dof));
                 let db = 20.0 * (ha[i].norm() / hb[j].norm()).log10();
                 sdb += db * db;
                 n += 1;
@@ -114,5 +131,8 @@ pub fn level_change(
         mean_z2: mean,
         rms_db: (sdb / nn).sqrt(),
         significant: n > 0 && mean > thr,
+        line_hz,
+        line_z2,
+        line_dof,
     }
 }

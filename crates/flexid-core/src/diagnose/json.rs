@@ -66,6 +66,8 @@ pub fn to_json(d: &Diagnosis) -> Value {
             "level_changes": d.residual.changes.iter().map(|c| json!({
                 "a": c.a, "b": c.b, "mean_z2": num(c.mean_z2), "rms_db": num(c.rms_db), "significant": c.significant,
             })).collect::<Vec<_>>(),
+            "local_gap": d.residual.local.map(located_json),
+            "local_change": d.residual.change_local.map(located_json),
         },
         "nominal": {
             "inertia_kgm2": chain.inertia_kgm2,
@@ -139,5 +141,17 @@ pub fn trajectory_json(t: &TrajectoryFit) -> Value {
             "recording": x.recording, "samples": x.samples,
             "relative_error_pct": num(100.0 * x.relative_error),
         })).collect::<Vec<_>>(),
+    })
+}
+
+/// The most significant run of lines of a localised scan ([`super::scan`]): where, how
+/// many lines, the probability of one run under noise alone and the runs tried.
+fn located_json(w: super::Located) -> Value {
+    json!({
+        "level": w.pair.is_none().then_some(w.window.series),
+        "levels": w.pair.map(|(a, b)| [a, b]),
+        "lo_hz": num(w.window.lo_hz), "hi_hz": num(w.window.hi_hz), "lines": w.window.lines,
+        "p_noise_per_run": num(w.window.p), "runs_tried": w.window.tests,
+        "significant": w.window.significant,
     })
 }

@@ -18,6 +18,7 @@ pub mod nlsim;
 pub mod noise;
 pub mod rank;
 mod renominal;
+pub mod scan;
 pub mod search;
 pub mod select;
 pub mod simplex;
@@ -307,11 +308,32 @@ pub struct Gap {
 pub struct ResidualKind {
     /// Reduced chi² of the nominal model (1 = within noise).
     pub reduced_chi2: f64,
+    /// Within the noise over the whole band ([`Data::within_noise`]).
     pub within_noise: bool,
     pub nonlinear: bool,
     pub linear_model_error: bool,
+    /// The most significant run of lines of the nominal model's gap ([`scan`]; its
+    /// `series` is the level).
+    pub local: Option<Located>,
+    /// The most significant run of lines of the FRF's change between two levels.
+    pub change_local: Option<Located>,
     pub levels: Vec<LevelDistortion>,
     pub changes: Vec<LevelChange>,
+}
+
+/// A scan's most significant window, with the pair of levels it compares (for the
+/// change between levels).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct Located {
+    #[serde(flatten)]
+    pub window: scan::Window,
+    pub pair: Option<(usize, usize)>,
+}
+
+impl From<scan::Window> for Located {
+    fn from(window: scan::Window) -> Self {
+        Located { window, pair: None }
+    }
 }
 
 /// One effect named by the forward selection, with the gap once it and every effect
@@ -456,23 +478,41 @@ pub fn diagnose(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Diagnosis,
     let n = opts.masses.max(1);
     let mut idents = Vec::new();
     let nom_lin = fit_nominal(&data, n, opts.band_hz, &mut idents)?;
-    let mut pass = diagnose_from(&data, &nom_lin, None, &idents, opts, &mut stage);
-    // a candidate whose own parameter is not significant is the nominal model, fitted
+    // a candidate whose own parameter is not significant can be the nominal model fitted
     // better (its extension's path led the chain out of a basin the nominal fit stayed
-    // in): when that lowers the nominal chi² by more than a parameter's BIC price, the
-    // diagnosis is made again from it (once)
-    if let Some((better, from, chi2)) = renominal::better_nominal(&data, &pass.nominal, &pass.fits)
-    {
-        let note = format!(
-            "nominal model refitted from the {from} fit, whose own parameter is not significant: chi2 {:.4e} -> {:.4e}; the diagnosis is made from it",
-            pass.nominal.chi2, chi2
-        );
-        idents.push(better.chain.clone());
-        let without_b = renominal::refit_without_damper(&data, &better);
-        pass = diagnose_from(&data, &without_b, Some(&better), &idents, opts, &mut stage);
-        pass.notes.insert(0, note);
-    }
+    // in): the diagnosis is then made again from it, once ([`renominal`])
+    let (mut start, mut viscous_start, mut why) = (nom_lin, None, None);
+    let pass = loop {
+        let first = why.is_none();
+        match diagnose_from(
+            &data,
+            &start,
+            viscous_start.as_ref(),
+            &idents,
+            opts,
+            &mut stage,
+            first,
+        ) {
+            Ok(mut pass) => {
+                pass.notes.splice(0..0, why);
+                break pass;
+            }
+            Err(Renominal { better, note }) => {
+                idents.push(better.chain.clone());
+                start = renominal::refit_without_damper(&data, &better);
+                viscous_start = Some(better);
+                why = Some(note);
+            }
+        }
+    };
     Ok(pass.into_diagnosis(n, data, t0.elapsed().as_secs_f64(), stage.stages))
+}
+
+/// A better nominal model found by the linear candidates ([`renominal::better_nominal`]),
+/// and the note saying so.
+struct Renominal {
+    better: LinExt,
+    note: String,
 }
 
 /// One diagnosis from a nominal chain: the parts of [`Diagnosis`] that depend on it.
@@ -485,8 +525,6 @@ struct Pass {
     gap: Gap,
     residual: ResidualKind,
     notes: Vec<String>,
-    /// Every candidate fitted on its own.
-    fits: Vec<EffectFit>,
 }
 
 impl Pass {
@@ -517,7 +555,9 @@ impl Pass {
 
 /// The diagnosis from the nominal chain `nom_lin` (fitted without the motor's damper;
 /// `viscous_start`: a fit with it to start the damper's fit from as well): the damper
-/// decided, the candidates fitted and ranked, the forward selection, the verdict.
+/// decided, the candidates fitted and ranked, the forward selection, the verdict. With
+/// `renominate`, a linear candidate that is the nominal model fitted better stops it
+/// before the costly candidates (`Err`: start again from that one).
 fn diagnose_from(
     data: &Data,
     nom_lin: &LinExt,
@@ -525,7 +565,8 @@ fn diagnose_from(
     idents: &[crate::model::Chain],
     opts: &DiagnoseOptions,
     stage: &mut StageClock,
-) -> Pass {
+    renominate: bool,
+) -> Result<Pass, Renominal> {
     let n = opts.masses.max(1);
     let viscous = effects::viscous::nominal_with_viscous(data, nom_lin, viscous_start, idents);
     let nom_lin = viscous.nominal.clone();
@@ -543,6 +584,17 @@ fn diagnose_from(
         // elsewhere can hide it): each linear effect is also tried on top of it, the
         // damping counted as one more parameter
         fit_linear_candidates_with_viscous(data, with, &mut candidates);
+    }
+    if renominate {
+        if let Some((better, from, chi2)) =
+            renominal::better_nominal(data, &nominal, &candidates.fits)
+        {
+            let note = format!(
+                "nominal model refitted from the {from} fit, whose own parameter is not significant: chi2 {:.4e} -> {:.4e}; the diagnosis is made from it",
+                nominal.chi2, chi2
+            );
+            return Err(Renominal { better, note });
+        }
     }
     let with_viscous = match (viscous.significant, &viscous.with_viscous) {
         (false, Some((with, _))) => Some(with),
@@ -617,7 +669,7 @@ fn diagnose_from(
     let winner = effects.first().map(|s| s.fit.clone());
     let gap = gap_of(data, &nominal, effects.last().map(|s| &s.fit));
     stage.lap("rank");
-    Pass {
+    Ok(Pass {
         verdict,
         effects,
         nominal,
@@ -626,8 +678,7 @@ fn diagnose_from(
         gap,
         residual,
         notes,
-        fits,
-    }
+    })
 }
 
 /// The candidates for the next step of the forward selection on `data` (the measurement,
@@ -1029,29 +1080,86 @@ fn residual_kind(data: &Data, nominal: &EffectFit) -> ResidualKind {
         .enumerate()
         .map(|(i, l)| distortion::level_distortion(i, l.torque_rms, l.nonexcited.as_ref()))
         .collect();
+    fn lines_of(l: &Level) -> distortion::LevelLines<'_> {
+        distortion::LevelLines {
+            f: &l.f,
+            h: &l.h,
+            var: &l.var,
+            dof: noise::dof(l.averages),
+        }
+    }
     let mut changes = Vec::new();
     for a in 0..data.levels.len() {
         for b in a + 1..data.levels.len() {
-            let (la, lb) = (&data.levels[a], &data.levels[b]);
             changes.push(distortion::level_change(
-                a, b, &la.f, &la.h, &la.var, &lb.f, &lb.h, &lb.var,
+                a,
+                b,
+                &lines_of(&data.levels[a]),
+                &lines_of(&data.levels[b]),
             ));
         }
     }
-    let nonlinear = changes.iter().any(|c| c.significant)
+    // where the FRF changes between levels on a few lines only (a ground spring at the
+    // lowest lines): the localised scan over every pair of levels
+    let change_local = scan::scan(
+        &changes
+            .iter()
+            .map(|c| scan::Series {
+                f: &c.line_hz,
+                z2: &c.line_z2,
+                dof: &c.line_dof,
+            })
+            .collect::<Vec<_>>(),
+    )
+    .map(|w| Located {
+        pair: Some((changes[w.series].a, changes[w.series].b)),
+        ..Located::from(w)
+    });
+    let changed =
+        changes.iter().any(|c| c.significant) || change_local.is_some_and(|w| w.window.significant);
+    let nonlinear = changed
         || levels
             .iter()
             .any(|l| l.detection_excess_db.is_some_and(|d| d > 6.0));
+    // the nominal model's gap, line by line: its most significant run of lines
+    let z2: Vec<Vec<f64>> = data
+        .levels
+        .iter()
+        .zip(&nominal.model)
+        .map(|(l, m)| localise::z2(&l.h, &l.var, m))
+        .collect();
+    let dofs: Vec<Vec<f64>> = data
+        .levels
+        .iter()
+        .map(|l| vec![noise::dof(l.averages); l.f.len()])
+        .collect();
+    let local = scan::scan(
+        &data
+            .levels
+            .iter()
+            .enumerate()
+            .map(|(i, l)| scan::Series {
+                f: &l.f,
+                z2: &z2[i],
+                dof: &dofs[i],
+            })
+            .collect::<Vec<_>>(),
+    )
+    .map(Located::from);
+    // the gap is judged over the whole band: the localised scan is reported, not yet a
+    // judge (on the world benchmark it called a gap of one to three lines real where the
+    // nominal fit or the sweep's estimate is off there by a few standard deviations: cases
+    // without effect 36 -> 33 of 50 right); it decides only whether the FRF changes
+    // between levels, i.e. whether the amplitude-dependent candidates are simulated
+    let within_noise = data.within_noise(nominal.chi2);
     // linear model error: the residual normalised by the model is the same at every level
-    let mut same = true;
-    if let Some(c) = changes.first() {
-        same = !c.significant;
-    }
     ResidualKind {
         reduced_chi2: reduced,
-        within_noise: data.within_noise(nominal.chi2),
+        within_noise,
         nonlinear,
-        linear_model_error: !data.within_noise(nominal.chi2) && same,
+        linear_model_error: !within_noise && !changed,
+        local,
+        change_local,
         levels,
         changes,
     }

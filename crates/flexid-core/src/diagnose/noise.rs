@@ -40,7 +40,7 @@ pub struct NoiseChi2 {
 /// Degrees of freedom `d = 2(P-1)` of a variance estimated from `averages` averages (at
 /// least one, so that a single average does not divide by zero; such a variance is not
 /// used by the estimators, which mark it infinite).
-fn dof(averages: usize) -> f64 {
+pub fn dof(averages: usize) -> f64 {
     2.0 * (averages.max(2) - 1) as f64
 }
 

@@ -111,6 +111,31 @@ pub fn render(d: &Diagnosis) -> String {
             }
         );
     }
+    for (what, w) in [
+        ("nominal model's gap", r.local),
+        ("FRF change between levels", r.change_local),
+    ] {
+        if let Some(w) = w {
+            let levels = match w.pair {
+                Some((a, b)) => format!("levels {a} -> {b}"),
+                None => format!("level {}", w.window.series),
+            };
+            let _ = writeln!(
+                s,
+                "  {what}, most significant run of lines: {levels}, {:.3} - {:.3} Hz ({} lines), noise alone {:.1e} per run x {} runs tried: {}",
+                w.window.lo_hz,
+                w.window.hi_hz,
+                w.window.lines,
+                w.window.p,
+                w.window.tests,
+                if w.window.significant {
+                    "significant"
+                } else {
+                    "within noise"
+                }
+            );
+        }
+    }
     let _ = writeln!(
         s,
         "  => noise {}, nonlinear distortion {}, linear model error {}",

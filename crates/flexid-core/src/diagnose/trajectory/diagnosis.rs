@@ -243,6 +243,8 @@ pub fn diagnose(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Diagnosis,
         within_noise: t.within_noise(&t.rigid),
         nonlinear: t.coulomb_named,
         linear_model_error: false,
+        local: None,
+        change_local: None,
         levels: Vec::new(),
         changes: Vec::new(),
     };

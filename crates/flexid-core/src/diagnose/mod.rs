@@ -801,6 +801,10 @@ fn fit_nominal(
             data.kind,
             &data.full_targets,
         ));
+        if !chi2.is_finite() {
+            // a degenerate chain (its response not finite on some line) is no nominal model
+            continue;
+        }
         let done = data.within_noise(chi2);
         if best.as_ref().is_none_or(|b| chi2 < b.1) {
             best = Some((lin, chi2));

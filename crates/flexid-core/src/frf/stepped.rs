@@ -39,13 +39,8 @@ pub fn estimate_stepped(
                 unit: "samples",
             });
         }
-        let mut est = PeriodicEstimator::from_info(&b.info(), sample_rate_hz, kind)?.with_quantum(
-            grid.map(|(q, x)| {
-                let steady = &x[b.steady_start().min(x.len())..];
-                let sigma = super::quantisation::scatter_std(steady, b.period_samples, b.periods);
-                super::quantisation::repeating_from_scatter(q, sigma.unwrap_or(0.0))
-            }),
-        );
+        let mut est = PeriodicEstimator::from_info(&b.info(), sample_rate_hz, kind)?
+            .with_quantum(grid.map(|(q, x)| repeating_power(b, q, x)));
         est.push(&u[b.start..end], &y[b.start..end])?;
         let one = est.estimate()?;
         for i in 0..one.len() {
@@ -64,6 +59,35 @@ pub fn estimate_stepped(
         kind,
         sample_rate_hz,
     })
+}
+
+/// The repeating quantisation power of block `b` of the recorded signal `x` (grid step
+/// `q`), as the white-error power that gives the same variance at the block's line: the
+/// larger of the white floor ([`super::quantisation::repeating_from_scatter`]) and the
+/// single tone's own ([`super::quantisation::tone_error_power_bound`], whose fundamental
+/// of mean square `E[E₁²]` is `E[E₁²]/4` on the `1/N`-scaled line: `N E[E₁²]/4` as a white
+/// power). A stepped sine plays one tone per block: its count error sits on the tone's
+/// harmonics, not spread over the period's lines.
+fn repeating_power(b: &SteppedBlock, q: f64, x: &[f64]) -> f64 {
+    use super::quantisation as qz;
+    let steady = &x[b.steady_start().min(x.len())..];
+    let scatter = qz::scatter_std(steady, b.period_samples, b.periods).unwrap_or(0.0);
+    let white = qz::repeating_from_scatter(q, scatter);
+    let n = (b.period_samples * b.periods).min(steady.len());
+    if n == 0 {
+        return white;
+    }
+    // the tone's amplitude in the recorded signal: its line over the steady periods
+    let w = 2.0 * std::f64::consts::PI * b.line as f64 / b.period_samples as f64;
+    let line: num_complex::Complex64 = steady[..n]
+        .iter()
+        .enumerate()
+        .map(|(i, v)| v * num_complex::Complex64::from_polar(1.0, -w * i as f64))
+        .sum();
+    let amplitude = 2.0 * line.norm() / n as f64;
+    let sigma = qz::noise_std_from_scatter(q, scatter);
+    let tone = qz::tone_error_power_bound(q, amplitude, sigma);
+    white.max(b.period_samples as f64 * tone / 4.0)
 }
 
 #[cfg(test)]

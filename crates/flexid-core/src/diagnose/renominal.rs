@@ -126,7 +126,7 @@ mod tests {
         assert!(chi2 < 1e-3 * nominal.chi2, "{chi2} vs {}", nominal.chi2);
         let k = better.chain.stiffness_nm_per_rad[1];
         assert!((k / 80.0 - 1.0).abs() < 1e-3, "{k}");
-        // the damper is kept, and refitting without it gives a worse chain
+        // the damper is kept; the start of the damper's decision has none
         assert!((better.motor_b / 0.02 - 1.0).abs() < 1e-3);
         let without = refit_without_damper(&data, &better);
         assert_eq!(without.motor_b, 0.0);

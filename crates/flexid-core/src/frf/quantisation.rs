@@ -352,8 +352,7 @@ mod tests {
             for _ in 0..trials {
                 let c = lcg(&mut s) * q;
                 let mut e1 = 0.0;
-                for p in 0..periods {
-                    let _ = p;
+                for _ in 0..periods {
                     for i in 0..n {
                         let th = 2.0 * std::f64::consts::PI * i as f64 / n as f64;
                         let x = c + a * th.sin();

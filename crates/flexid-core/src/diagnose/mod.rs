@@ -143,6 +143,15 @@ impl Data {
             .map(|(l, m)| localise::z2(&l.h, &l.var, m).iter().sum::<f64>())
             .sum()
     }
+    /// chi² of a linear model (chain and extensions) on all lines of every level.
+    pub fn chi2_of(&self, lin: &LinExt) -> f64 {
+        self.chi2(&effects::model_on(
+            lin,
+            self.fs,
+            self.kind,
+            &self.full_targets,
+        ))
+    }
     pub fn lines(&self) -> usize {
         self.levels.iter().map(|l| l.f.len()).sum()
     }
@@ -795,12 +804,7 @@ fn fit_nominal(
         };
         starts.push(start.clone());
         let lin = fit_joint(start);
-        let chi2 = data.chi2(&effects::model_on(
-            &lin,
-            data.fs,
-            data.kind,
-            &data.full_targets,
-        ));
+        let chi2 = data.chi2_of(&lin);
         if !chi2.is_finite() {
             // a degenerate chain (its response not finite on some line) is no nominal model
             continue;
@@ -1000,9 +1004,10 @@ fn fit_extra_mode(
         // the extra body is the ground: the fit is gravity's (refitted as such too; the
         // better of the two), and no unmodelled mode
         Some(same) => {
+            let ground = &mf.lin.chain.inertia_kgm2;
             c.skip(Effect::UnmodelledMode, format!(
                 "unmodelled_mode: its extra body ({:.3e} kg m2) is the ground (20 times the rest of the chain): the fit is a restoring stiffness, taken as gravity",
-                mf.lin.chain.inertia_kgm2.last().copied().unwrap_or(f64::NAN)
+                ground[ground.len() - 1]
             ));
             let refit = effects::gravity::from_ground_body(data, &mf.lin.chain);
             Some(match refit {

@@ -20,14 +20,6 @@ pub fn better_nominal(
 ) -> Option<(LinExt, Effect, f64)> {
     let n = nominal.lin.chain.masses();
     let price = (data.lines().max(2) as f64).ln() * data.noise.mean;
-    let chi2 = |l: &LinExt| {
-        data.chi2(&effects::model_on(
-            l,
-            data.fs,
-            data.kind,
-            &data.full_targets,
-        ))
-    };
     let mut best: Option<(LinExt, Effect, f64)> = None;
     for f in fits {
         let linear = matches!(
@@ -53,7 +45,7 @@ pub fn better_nominal(
         let refit = effects::fit_linear(data, &data.targets, kind, &s, 40)
             .map(|r| r.0)
             .unwrap_or(s);
-        let c = chi2(&refit);
+        let c = data.chi2_of(&refit);
         if c < nominal.chi2 - price && best.as_ref().is_none_or(|b| c < b.2) {
             best = Some((refit, f.effect, c));
         }

@@ -63,7 +63,8 @@ pub fn estimate_stepped(
 
 /// The repeating quantisation power of block `b` of the recorded signal `x` (grid step
 /// `q`), as the white-error power that gives the same variance at the block's line: the
-/// larger of the white floor ([`super::quantisation::repeating_from_scatter`]) and the
+/// larger of the white floor ([`super::quantisation::repeating_variance`] at the noise
+/// behind the counts, [`super::quantisation::noise_std_from_scatter`]) and the
 /// single tone's own ([`super::quantisation::tone_error_power_bound`], whose fundamental
 /// of mean square `E[E₁²]` is `E[E₁²]/4` on the `1/N`-scaled line: `N E[E₁²]/4` as a white
 /// power). A stepped sine plays one tone per block: its count error sits on the tone's
@@ -72,7 +73,8 @@ fn repeating_power(b: &SteppedBlock, q: f64, x: &[f64]) -> f64 {
     use super::quantisation as qz;
     let steady = &x[b.steady_start().min(x.len())..];
     let scatter = qz::scatter_std(steady, b.period_samples, b.periods).unwrap_or(0.0);
-    let white = qz::repeating_from_scatter(q, scatter);
+    let sigma = qz::noise_std_from_scatter(q, scatter);
+    let white = qz::repeating_variance(q, sigma);
     let n = (b.period_samples * b.periods).min(steady.len());
     if n == 0 {
         return white;
@@ -85,7 +87,6 @@ fn repeating_power(b: &SteppedBlock, q: f64, x: &[f64]) -> f64 {
         .map(|(i, v)| v * num_complex::Complex64::from_polar(1.0, -w * i as f64))
         .sum();
     let amplitude = 2.0 * line.norm() / n as f64;
-    let sigma = qz::noise_std_from_scatter(q, scatter);
     let tone = qz::tone_error_power_bound(q, amplitude, sigma);
     white.max(b.period_samples as f64 * tone / 4.0)
 }

@@ -64,8 +64,7 @@ pub fn nominal_with_viscous(
         };
     };
     let lines = data.lines().max(1) as f64;
-    let chi2 = |l: &LinExt| data.chi2(&model_on(l, data.fs, data.kind, &data.full_targets));
-    let (c0, c1) = (chi2(nominal), chi2(&m));
+    let (c0, c1) = (data.chi2_of(nominal), data.chi2_of(&m));
     let n = m.chain.masses();
     let excess = leverage_weighted_excess(data, &m);
     let std = log_std(&r, 3 * n - 2, m.motor_b) * excess.sqrt();

@@ -12,6 +12,6 @@ mod time_cap;
 
 pub use estimate::{estimate_frf, periodic_excitation, EstimatedFrf};
 pub use json::to_json;
-pub use pipeline::{analyze, Analysis, AnalysisError, AnalysisOptions};
+pub use pipeline::{analyze, analyze_estimate, Analysis, AnalysisError, AnalysisOptions};
 pub use summary::{Coupling, ModelSummary};
 pub use time_cap::TimeCap;

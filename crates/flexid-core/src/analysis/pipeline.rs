@@ -120,7 +120,19 @@ pub struct Analysis {
 /// With a capped `opts.fit.budget`, starts and orders not begun when the cap passes are
 /// skipped and the best model so far is returned; `Analysis::time_cap` and a note say so.
 pub fn analyze(rec: &Recording, opts: &AnalysisOptions) -> Result<Analysis, AnalysisError> {
-    let mut a = analyze_uncapped(rec, opts)?;
+    let measured = estimate_frf(rec, opts.band_hz)?;
+    analyze_estimate(rec, measured, opts)
+}
+
+/// [`analyze`] from an FRF estimated beforehand from `rec` (and possibly corrected, e.g. a
+/// known ground damper removed: `diagnose`'s damper-free starts). `rec` gives the sample
+/// rate, the I/O delay and the sidecar's facts.
+pub fn analyze_estimate(
+    rec: &Recording,
+    measured: EstimatedFrf,
+    opts: &AnalysisOptions,
+) -> Result<Analysis, AnalysisError> {
+    let mut a = analyze_uncapped(rec, measured, opts)?;
     a.time_cap = super::TimeCap::of(&opts.fit.budget);
     if let Some(m) = a.time_cap.as_ref().and_then(|t| t.message()) {
         a.notes.insert(0, m);
@@ -128,11 +140,15 @@ pub fn analyze(rec: &Recording, opts: &AnalysisOptions) -> Result<Analysis, Anal
     Ok(a)
 }
 
-fn analyze_uncapped(rec: &Recording, opts: &AnalysisOptions) -> Result<Analysis, AnalysisError> {
+fn analyze_uncapped(
+    rec: &Recording,
+    measured: EstimatedFrf,
+    opts: &AnalysisOptions,
+) -> Result<Analysis, AnalysisError> {
     check_masses(opts)?;
     let fs = rec.sample_rate_hz;
     let delay = rec.sidecar.io_delay_samples.unwrap_or(0);
-    let (mut analysis, work, fittable) = measure_and_detect(rec, opts, delay)?;
+    let (mut analysis, work, fittable) = measure_and_detect(rec, measured, opts, delay)?;
     let total = total_inertia(
         rec,
         &work,
@@ -185,10 +201,10 @@ fn check_masses(opts: &AnalysisOptions) -> Result<(), AnalysisError> {
 /// velocity response).
 fn measure_and_detect(
     rec: &Recording,
+    measured: EstimatedFrf,
     opts: &AnalysisOptions,
     delay: u32,
 ) -> Result<(Analysis, Frf, bool), AnalysisError> {
-    let measured = estimate_frf(rec, opts.band_hz)?;
     let mut notes = Vec::new();
     if let Some(src) = &rec.sidecar.source {
         notes.push(format!("source: {src}"));

@@ -8,6 +8,7 @@
 //! [`trajectory`] instead: the rigid body with friction by inverse dynamics.
 
 pub mod acceleration;
+pub mod damper_free;
 pub mod distortion;
 mod effect;
 pub mod effects;
@@ -487,21 +488,20 @@ pub fn diagnose(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Diagnosis,
     let n = opts.masses.max(1);
     let mut idents = Vec::new();
     let nom_lin = fit_nominal(&data, n, opts.band_hz, &mut idents)?;
+    // the chain identified with the motor's damper to the ground taken out of the
+    // measurement: a start the damper's fit cannot reach from a free chain bent to mimic it
+    let damper_free: Vec<LinExt> = damper_free::start(&data, n, opts.band_hz)
+        .into_iter()
+        .collect();
+    stage.lap("damper_free");
     // a candidate whose own parameter is not significant can be the nominal model fitted
     // better (its extension's path led the chain out of a basin the nominal fit stayed
     // in): the diagnosis is then made again from it, once ([`renominal`])
     let (mut start, mut viscous_start, mut why) = (nom_lin, None, None);
     let pass = loop {
         let first = why.is_none();
-        match diagnose_from(
-            &data,
-            &start,
-            viscous_start.as_ref(),
-            &idents,
-            opts,
-            &mut stage,
-            first,
-        ) {
+        let fitted: Vec<LinExt> = damper_free.iter().chain(&viscous_start).cloned().collect();
+        match diagnose_from(&data, &start, &fitted, &idents, opts, &mut stage, first) {
             Ok(mut pass) => {
                 pass.notes.splice(0..0, why);
                 break pass;
@@ -563,21 +563,21 @@ impl Pass {
 }
 
 /// The diagnosis from the nominal chain `nom_lin` (fitted without the motor's damper;
-/// `viscous_start`: a fit with it to start the damper's fit from as well): the damper
+/// `viscous_starts`: fits with it to start the damper's fit from as well): the damper
 /// decided, the candidates fitted and ranked, the forward selection, the verdict. With
 /// `renominate`, a linear candidate that is the nominal model fitted better stops it
 /// before the costly candidates (`Err`: start again from that one).
 fn diagnose_from(
     data: &Data,
     nom_lin: &LinExt,
-    viscous_start: Option<&LinExt>,
+    viscous_starts: &[LinExt],
     idents: &[crate::model::Chain],
     opts: &DiagnoseOptions,
     stage: &mut StageClock,
     renominate: bool,
 ) -> Result<Pass, Renominal> {
     let n = opts.masses.max(1);
-    let viscous = effects::viscous::nominal_with_viscous(data, nom_lin, viscous_start, idents);
+    let viscous = effects::viscous::nominal_with_viscous(data, nom_lin, viscous_starts, idents);
     let nom_lin = viscous.nominal.clone();
     let nominal = effects::finish_linear(data, Effect::None, nom_lin.clone(), vec![], 0);
     stage.lap("nominal");

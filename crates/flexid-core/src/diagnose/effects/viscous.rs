@@ -32,12 +32,13 @@ pub struct ViscousNominal {
 /// which and why. Started from the nominal chain and from the identifications `idents`
 /// (the chains the nominal fit started from): a nominal chain fitted without the damper
 /// can have bent into a basin (a soft extra pair mimicking the ground damping) that the
-/// damper alone does not leave. `fitted`: a fit with the damper to start from as it is
-/// (a better nominal model found by a candidate's fit).
+/// damper alone does not leave. `fitted`: models with the damper to start from as they
+/// are (a better nominal model found by a candidate's fit, the chain identified with the
+/// damper taken out of the measurement: [`crate::diagnose::damper_free`]).
 pub fn nominal_with_viscous(
     data: &Data,
     nominal: &LinExt,
-    fitted: Option<&LinExt>,
+    fitted: &[LinExt],
     idents: &[crate::model::Chain],
 ) -> ViscousNominal {
     let jt = nominal.chain.total_inertia();
@@ -53,7 +54,7 @@ pub fn nominal_with_viscous(
             starts.push(s);
         }
     }
-    starts.extend(fitted.filter(|f| f.motor_b > 0.0).cloned());
+    starts.extend(fitted.iter().filter(|f| f.motor_b > 0.0).cloned());
     let Some((m, r)) = fit_best_start(data, Lin::Viscous, &starts, 40, 2) else {
         return ViscousNominal {
             nominal: nominal.clone(),

@@ -24,6 +24,7 @@ use crate::limits::{FaultKind, Limiter};
 use crate::od::{self, idx, Od, OdDefaults};
 use crate::physics::{AxisSample, Physics};
 use crate::slave::{Slave, SlaveError, SlaveEvent};
+use crate::sync_watch::{SyncWatch, LOCKSTEP_FLOOR};
 
 /// Most frames one call can produce.
 pub const MAX_OUTPUTS: usize = 8;
@@ -106,6 +107,7 @@ pub struct VirtualDrive<P: Physics> {
     physics: P,
     producer: Producer,
     consumer: Consumer,
+    sync_watch: SyncWatch,
     fault: Option<FaultKind>,
     /// Torque held over the current cycle [N m].
     applied_nm: f64,
@@ -137,6 +139,7 @@ impl<P: Physics> VirtualDrive<P> {
         slave.set_cycle_adjustable(physics.cycle_adjustable());
         let last = physics.sample();
         let base_cycle_hz = cfg.cycle_hz;
+        let sync_watch = SyncWatch::new(cfg.sync_loss_cycles);
         Ok(Self {
             ts: 1.0 / cfg.cycle_hz,
             inc_per_rad: f64::from(cfg.encoder_increments_per_rev) / (2.0 * std::f64::consts::PI),
@@ -147,6 +150,7 @@ impl<P: Physics> VirtualDrive<P> {
             physics,
             producer: Producer::default(),
             consumer: Consumer::default(),
+            sync_watch,
             fault: None,
             applied_nm: 0.0,
             limited: false,
@@ -243,11 +247,19 @@ impl<P: Physics> VirtualDrive<P> {
         out
     }
 
-    /// Timers at `now`: heartbeat production, heartbeat consumer supervision.
+    /// Timers at `now`: heartbeat production, heartbeat consumer and SYNC-loss
+    /// supervision.
     pub fn tick(&mut self, now: Duration) -> Outputs {
         let mut out = Outputs::default();
         if self.producer.due(now) {
             out.push(self.slave.heartbeat());
+        }
+        if self.fault.is_none()
+            && self.dc.state().torque_enabled()
+            && self.sync_watch.overdue(now, self.sync_window())
+        {
+            tracing::warn!(cycles = self.sync_watch.cycles(), "SYNC lost: torque off");
+            self.raise(FaultKind::SyncLost, &mut out);
         }
         if self.fault.is_none()
             && self.dc.state() == State::OperationEnabled
@@ -265,10 +277,26 @@ impl<P: Physics> VirtualDrive<P> {
         // would leave a deadline in the past and a runner spinning on it).
         let supervised = self.fault.is_none() && self.dc.state() == State::OperationEnabled;
         let consumer = self.consumer.deadline().filter(|_| supervised);
-        match (self.producer.next_due(), consumer) {
-            (Some(a), Some(b)) => Some(a.min(b)),
-            (a, b) => a.or(b),
-        }
+        let sync = self
+            .sync_watch
+            .deadline(self.sync_window())
+            .filter(|_| self.fault.is_none() && self.dc.state().torque_enabled());
+        [self.producer.next_due(), consumer, sync]
+            .into_iter()
+            .flatten()
+            .min()
+    }
+
+    /// The SYNC-loss window: `sync_loss_cycles` periods of 0x1006 (`None`: off), at
+    /// least [`LOCKSTEP_FLOOR`] in lock-step.
+    fn sync_window(&self) -> Option<Duration> {
+        let us = od::get_u32(self.slave.od(), idx::CYCLE_PERIOD, 0).unwrap_or(0);
+        let floor = match self.cfg.clock {
+            ClockMode::LockStep => LOCKSTEP_FLOOR,
+            ClockMode::RealTime => Duration::ZERO,
+        };
+        self.sync_watch
+            .window(Duration::from_micros(u64::from(us)), floor)
     }
 
     /// The CiA 402 state.
@@ -394,6 +422,7 @@ impl<P: Physics> VirtualDrive<P> {
         }
         if after == State::OperationEnabled && before != State::OperationEnabled {
             self.velocity_integral = 0.0;
+            self.sync_watch.disarm(); // supervised from the next SYNC on
         }
         if before != after {
             tracing::debug!(?before, ?after, cw, "CiA 402");
@@ -408,6 +437,8 @@ impl<P: Physics> VirtualDrive<P> {
         tracing::warn!(?kind, code = kind.emcy_code(), "fault");
         self.fault = Some(kind);
         self.dc.fault();
+        // the reaction is immediate: no torque from now on, SYNC or not
+        self.applied_nm = 0.0;
         self.limited = false;
         od::set(
             self.slave.od_mut(),
@@ -423,6 +454,11 @@ impl<P: Physics> VirtualDrive<P> {
 
     fn sync_into(&mut self, now: Duration, out: &mut Outputs) {
         self.stats.syncs += 1;
+        if self.dc.state().torque_enabled() {
+            self.sync_watch.seen(now);
+        } else {
+            self.sync_watch.disarm();
+        }
         if self.cfg.clock == ClockMode::RealTime {
             self.catch_up(now);
         }

@@ -7,6 +7,7 @@
 //!   `x' = ((T/T_cont)^2 - x) / tau`; `x > 1` is a fault, EMCY 0x2310 (continuous over
 //!   current).
 //! * Heartbeat consumer ([`crate::heartbeat`]): EMCY 0x8130.
+//! * SYNC loss ([`crate::sync_watch`]): EMCY 0x8700.
 
 use canopen_rs::ErrorRegister;
 
@@ -19,6 +20,9 @@ pub enum FaultKind {
     ContinuousOvercurrent,
     /// The master's heartbeat was not seen within the consumer time.
     HeartbeatLost,
+    /// No SYNC for the configured number of cycles in Operation enabled
+    /// ([`crate::sync_watch`]).
+    SyncLost,
 }
 
 impl FaultKind {
@@ -28,6 +32,9 @@ impl FaultKind {
             FaultKind::Overspeed => 0x8400,
             FaultKind::ContinuousOvercurrent => 0x2310,
             FaultKind::HeartbeatLost => 0x8130,
+            // CiA 301 has no code for a missing SYNC; CiA 402 lists 0x8700 "sync
+            // controller" in the monitoring class.
+            FaultKind::SyncLost => 0x8700,
         }
     }
 
@@ -36,7 +43,7 @@ impl FaultKind {
         ErrorRegister(match self {
             FaultKind::Overspeed => ErrorRegister::DEVICE_PROFILE,
             FaultKind::ContinuousOvercurrent => ErrorRegister::CURRENT,
-            FaultKind::HeartbeatLost => ErrorRegister::COMMUNICATION,
+            FaultKind::HeartbeatLost | FaultKind::SyncLost => ErrorRegister::COMMUNICATION,
         })
     }
 }
@@ -109,7 +116,7 @@ impl Limiter {
         match kind {
             FaultKind::Overspeed => self.check_speed(velocity_rad_s).is_none(),
             FaultKind::ContinuousOvercurrent => self.i2t <= 1.0,
-            FaultKind::HeartbeatLost => true,
+            FaultKind::HeartbeatLost | FaultKind::SyncLost => true,
         }
     }
 

@@ -187,7 +187,9 @@ fn fault_then_fault_reset() {
 
 #[test]
 fn heartbeat_consumer_loss_faults_within_the_consumer_time() {
-    let mut d = Dut::new();
+    // The heartbeat consumer alone: SYNC-loss supervision (tests/sync_loss.rs) off, as no
+    // SYNC comes while the heartbeats do.
+    let mut d = Dut::with(&plant("sync_loss_cycles = 0"));
     // 0x1016:1 = (1 << 16) | 50 ms.
     d.sdo_ok([0x23, 0x16, 0x10, 0x01, 0x32, 0x00, 0x01, 0x00]);
     d.send(0x701, &[0x05]);

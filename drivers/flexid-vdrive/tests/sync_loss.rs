@@ -133,3 +133,74 @@ fn the_next_deadline_includes_the_sync_supervision() {
         "{due:?} after {last:?}"
     );
 }
+
+/// The done-when of issue 16 on a bus: the real-time drive behind its [`Runner`], a
+/// master that enables it, runs 2 ms SYNC cycles at 1 N m and dies. The EMCY comes, and
+/// the torque is gone, within 3 SYNC periods of the first SYNC that did not come.
+#[test]
+fn on_a_bus_a_dead_master_leaves_no_torque_within_3_sync_periods() {
+    use flexid_can::{CanBus, InprocBus};
+    use flexid_vdrive::Runner;
+    use std::sync::atomic::{AtomicBool, Ordering};
+    use std::sync::Arc;
+    use std::time::Instant;
+
+    let drive = linear_drive(&plant(""), ClockMode::RealTime).unwrap();
+    let mut master = InprocBus::new("sync-loss");
+    let bus = master.handle();
+    let stop = Arc::new(AtomicBool::new(false));
+    let stop2 = stop.clone();
+    let th = std::thread::spawn(move || {
+        let mut r = Runner::new(bus, drive);
+        r.run(&stop2).unwrap();
+        r
+    });
+    let wait_for = |m: &mut InprocBus, cob: u32| loop {
+        let r = m
+            .recv_timeout(Duration::from_secs(5))
+            .unwrap()
+            .unwrap_or_else(|| panic!("no 0x{cob:03X} within 5 s"));
+        if r.frame.id().raw() == cob {
+            return r;
+        }
+    };
+    wait_for(&mut master, 0x705);
+    // 0x1006 = 2000 µs: the cycle the master runs.
+    let period = Duration::from_millis(2);
+    master
+        .send(&frame(
+            0x605,
+            &[0x23, 0x06, 0x10, 0x00, 0xD0, 0x07, 0x00, 0x00],
+        ))
+        .unwrap();
+    wait_for(&mut master, 0x585);
+    master.send(&frame(0x000, &[0x01, 0x05])).unwrap();
+    for cw in [0x06u8, 0x07, 0x0F] {
+        master.send(&frame(0x205, &[cw, 0, 0, 0])).unwrap();
+    }
+    let mut last_sync = Instant::now();
+    let t0 = Instant::now();
+    for k in 1..=50u32 {
+        master
+            .send(&frame(0x205, &[0x0F, 0x00, 0xE8, 0x03]))
+            .unwrap(); // 1000 per mille
+        last_sync = Instant::now();
+        master.send(&frame(0x080, &[])).unwrap();
+        let next = t0 + period * k;
+        std::thread::sleep(next.saturating_duration_since(Instant::now()));
+    }
+    // The master is gone; the first missing SYNC was due one period after the last.
+    let emcy = wait_for(&mut master, 0x085);
+    assert_eq!(emcy.frame.data()[..3], [0x00, 0x87, 0x11]);
+    let lost_at = last_sync + period;
+    let after = emcy.timestamp.saturating_duration_since(lost_at);
+    assert!(
+        after <= 3 * period,
+        "EMCY {after:?} after the first missing SYNC (3 periods: {:?})",
+        3 * period
+    );
+    stop.store(true, Ordering::Relaxed);
+    let r = th.join().unwrap();
+    assert_eq!(r.drive().applied_torque_nm(), 0.0);
+    assert_eq!(r.drive().fault(), Some(FaultKind::SyncLost));
+}

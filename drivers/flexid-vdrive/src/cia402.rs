@@ -140,6 +140,23 @@ impl DeviceControl {
         self.state = State::Fault;
     }
 
+    /// Disable voltage from any state but Fault (0x6007 = 2): transitions 7, 9, 10, 12.
+    pub fn disable_voltage(&mut self) {
+        if !matches!(self.state, State::Fault | State::FaultReactionActive) {
+            self.state = State::SwitchOnDisabled;
+        }
+    }
+
+    /// Quick stop (0x6007 = 3): transition 11 from Operation enabled, else as Disable
+    /// voltage.
+    pub fn quick_stop(&mut self) {
+        match self.state {
+            State::OperationEnabled => self.state = State::QuickStopActive,
+            State::QuickStopActive => {}
+            _ => self.disable_voltage(),
+        }
+    }
+
     /// The quick-stop ramp has reached zero torque: quick stop option code 2, transition 12.
     pub fn quick_stop_done(&mut self) {
         if self.state == State::QuickStopActive {

@@ -108,6 +108,9 @@ pub struct VirtualDrive<P: Physics> {
     producer: Producer,
     consumer: Consumer,
     sync_watch: SyncWatch,
+    /// Whether the master has written 0x1006 since the last reset: only a period the
+    /// master declared is supervised (the default is the plant file's, not the master's).
+    sync_period_declared: bool,
     fault: Option<FaultKind>,
     /// Torque held over the current cycle [N m].
     applied_nm: f64,
@@ -151,6 +154,7 @@ impl<P: Physics> VirtualDrive<P> {
             producer: Producer::default(),
             consumer: Consumer::default(),
             sync_watch,
+            sync_period_declared: false,
             fault: None,
             applied_nm: 0.0,
             limited: false,
@@ -201,6 +205,7 @@ impl<P: Physics> VirtualDrive<P> {
             }
             return out;
         }
+        let nmt_before = self.slave.nmt();
         let (resp, ev) = self.slave.on_frame(cob, data);
         out.push(resp);
         match ev {
@@ -215,7 +220,10 @@ impl<P: Physics> VirtualDrive<P> {
                 }
                 if !communication_only {
                     self.reset_application();
-                } else if let Some(k) = self.fault {
+                    self.boot(now, &mut out);
+                    return out;
+                }
+                if let Some(k) = self.fault {
                     // The fault outlives a communication reset: keep 0x1001 showing it.
                     let reg = k.error_register().0 | canopen_rs::ErrorRegister::GENERIC;
                     od::set(
@@ -225,13 +233,15 @@ impl<P: Physics> VirtualDrive<P> {
                     );
                 }
                 self.boot(now, &mut out);
+                // reset communication: the master's connection is gone
+                self.abort_connection(&mut out);
             }
             SlaveEvent::Nmt(cmd) => {
                 tracing::debug!(cmd, "NMT");
-                if cmd == 0x02 && self.dc.state().torque_enabled() {
-                    // NMT stop: no more set-points arrive; disable voltage.
-                    self.dc.on_controlword(0x0000, true);
-                    self.publish_status();
+                // Stopped, or Operational left: no more set-points arrive (CiA 402 abort
+                // connection).
+                if cmd == 0x02 || (cmd == 0x80 && nmt_before == NmtState::Operational) {
+                    self.abort_connection(&mut out);
                 }
             }
             SlaveEvent::Rpdo => self.on_controlword(&mut out),
@@ -287,9 +297,13 @@ impl<P: Physics> VirtualDrive<P> {
             .min()
     }
 
-    /// The SYNC-loss window: `sync_loss_cycles` periods of 0x1006 (`None`: off), at
-    /// least [`LOCKSTEP_FLOOR`] in lock-step.
+    /// The SYNC-loss window: `sync_loss_cycles` periods of 0x1006 as the master wrote it
+    /// (`None`: off, or the master never declared its period), at least
+    /// [`LOCKSTEP_FLOOR`] in lock-step.
     fn sync_window(&self) -> Option<Duration> {
+        if !self.sync_period_declared {
+            return None;
+        }
         let us = od::get_u32(self.slave.od(), idx::CYCLE_PERIOD, 0).unwrap_or(0);
         let floor = match self.cfg.clock {
             ClockMode::LockStep => LOCKSTEP_FLOOR,
@@ -346,6 +360,7 @@ impl<P: Physics> VirtualDrive<P> {
 
     fn boot(&mut self, now: Duration, out: &mut Outputs) {
         out.push(self.slave.boot());
+        self.sync_period_declared = false; // 0x1006 is back at its default
         let hb = od::get_u32(self.slave.od(), idx::HB_PRODUCER, 0).unwrap_or(0) as u16;
         self.producer.restart(hb, now);
         self.consumer
@@ -374,6 +389,7 @@ impl<P: Physics> VirtualDrive<P> {
             idx::MODES => self.publish_status(),
             idx::CYCLE_PERIOD => {
                 let us = od::get_u32(self.slave.od(), idx::CYCLE_PERIOD, 0).unwrap_or(0);
+                self.sync_period_declared = us != 0;
                 if us != 0 {
                     let hz = 1e6 / f64::from(us);
                     if (hz - self.cfg.cycle_hz).abs() > 1e-9 * hz && !self.change_cycle(hz) {
@@ -430,6 +446,32 @@ impl<P: Physics> VirtualDrive<P> {
         self.publish_status();
     }
 
+    /// The connection to the master is aborted (NMT Operational left, reset
+    /// communication): with the power stage on, 0x6007 says what happens.
+    fn abort_connection(&mut self, out: &mut Outputs) {
+        use od::abort_connection as code;
+        if !self.dc.state().torque_enabled() {
+            return;
+        }
+        let option = od::get_i64(self.slave.od(), idx::ABORT_CONNECTION)
+            .unwrap_or(i64::from(code::DISABLE_VOLTAGE)) as i16;
+        tracing::warn!(option, "connection aborted while the power stage is on");
+        match option {
+            code::NO_ACTION => {}
+            code::FAULT => self.raise(FaultKind::ConnectionAborted, out),
+            code::QUICK_STOP => {
+                self.dc.quick_stop();
+                self.publish_status();
+            }
+            _ => {
+                self.dc.disable_voltage();
+                self.applied_nm = 0.0;
+                self.limited = false;
+                self.publish_status();
+            }
+        }
+    }
+
     fn raise(&mut self, kind: FaultKind, out: &mut Outputs) {
         if self.fault.is_some() {
             return;
@@ -445,11 +487,34 @@ impl<P: Physics> VirtualDrive<P> {
             idx::ERROR_CODE,
             Value::Unsigned16(kind.emcy_code()),
         );
-        out.push(
-            self.slave
-                .emergency(kind.emcy_code(), kind.error_register()),
-        );
+        let emcy = self
+            .slave
+            .emergency(kind.emcy_code(), kind.error_register());
+        // CiA 301: no EMCY in NMT stopped (0x1001 and 0x1003 still record it)
+        if self.slave.nmt() != NmtState::Stopped {
+            out.push(emcy);
+        }
         self.publish_status();
+        if kind.is_communication() {
+            self.error_behaviour();
+        }
+    }
+
+    /// CiA 301 0x1029:1: the NMT state after a communication error.
+    fn error_behaviour(&mut self) {
+        use od::error_behaviour as eb;
+        let b = od::get_u32(self.slave.od(), idx::ERROR_BEHAVIOUR, 1).unwrap_or(0) as u8;
+        match b {
+            eb::PRE_OPERATIONAL if self.slave.nmt() == NmtState::Operational => {
+                tracing::warn!("communication error: NMT pre-operational (0x1029:1 = 0)");
+                self.slave.enter_nmt(0x80);
+            }
+            eb::STOPPED => {
+                tracing::warn!("communication error: NMT stopped (0x1029:1 = 2)");
+                self.slave.enter_nmt(0x02);
+            }
+            _ => {}
+        }
     }
 
     fn sync_into(&mut self, now: Duration, out: &mut Outputs) {

@@ -8,6 +8,7 @@
 //!   current).
 //! * Heartbeat consumer ([`crate::heartbeat`]): EMCY 0x8130.
 //! * SYNC loss ([`crate::sync_watch`]): EMCY 0x8700.
+//! * Connection aborted with 0x6007 = 1: EMCY 0x8100.
 
 use canopen_rs::ErrorRegister;
 
@@ -23,9 +24,17 @@ pub enum FaultKind {
     /// No SYNC for the configured number of cycles in Operation enabled
     /// ([`crate::sync_watch`]).
     SyncLost,
+    /// The connection to the master was aborted (NMT Operational left, reset
+    /// communication) with 0x6007 = 1 (fault signal).
+    ConnectionAborted,
 }
 
 impl FaultKind {
+    /// Whether it is a communication error (CiA 301 0x1029:1 applies).
+    pub const fn is_communication(self) -> bool {
+        matches!(self, FaultKind::HeartbeatLost | FaultKind::SyncLost)
+    }
+
     /// The EMCY error code (also 0x603F error code).
     pub const fn emcy_code(self) -> u16 {
         match self {
@@ -35,6 +44,7 @@ impl FaultKind {
             // CiA 301 has no code for a missing SYNC; CiA 402 lists 0x8700 "sync
             // controller" in the monitoring class.
             FaultKind::SyncLost => 0x8700,
+            FaultKind::ConnectionAborted => 0x8100,
         }
     }
 
@@ -43,7 +53,9 @@ impl FaultKind {
         ErrorRegister(match self {
             FaultKind::Overspeed => ErrorRegister::DEVICE_PROFILE,
             FaultKind::ContinuousOvercurrent => ErrorRegister::CURRENT,
-            FaultKind::HeartbeatLost | FaultKind::SyncLost => ErrorRegister::COMMUNICATION,
+            FaultKind::HeartbeatLost | FaultKind::SyncLost | FaultKind::ConnectionAborted => {
+                ErrorRegister::COMMUNICATION
+            }
         })
     }
 }
@@ -116,7 +128,7 @@ impl Limiter {
         match kind {
             FaultKind::Overspeed => self.check_speed(velocity_rad_s).is_none(),
             FaultKind::ContinuousOvercurrent => self.i2t <= 1.0,
-            FaultKind::HeartbeatLost | FaultKind::SyncLost => true,
+            FaultKind::HeartbeatLost | FaultKind::SyncLost | FaultKind::ConnectionAborted => true,
         }
     }
 

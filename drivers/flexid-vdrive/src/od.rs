@@ -35,10 +35,12 @@ pub mod idx {
     pub const HB_CONSUMER: u16 = 0x1016;
     pub const HB_PRODUCER: u16 = 0x1017;
     pub const IDENTITY: u16 = 0x1018;
+    pub const ERROR_BEHAVIOUR: u16 = 0x1029;
     pub const RPDO_COMM: u16 = 0x1400;
     pub const RPDO_MAP: u16 = 0x1600;
     pub const TPDO_COMM: u16 = 0x1800;
     pub const TPDO_MAP: u16 = 0x1A00;
+    pub const ABORT_CONNECTION: u16 = 0x6007;
     pub const ERROR_CODE: u16 = 0x603F;
     pub const CONTROLWORD: u16 = 0x6040;
     pub const STATUSWORD: u16 = 0x6041;
@@ -53,6 +55,31 @@ pub mod idx {
     pub const TARGET_POSITION: u16 = 0x607A;
     pub const TARGET_VELOCITY: u16 = 0x60FF;
     pub const SUPPORTED_MODES: u16 = 0x6502;
+}
+
+/// 0x6007 abort connection option codes (CiA 402): what the drive does when the
+/// connection to its master is aborted (NMT Operational left, reset communication) while
+/// the power stage is on.
+pub mod abort_connection {
+    /// No action.
+    pub const NO_ACTION: i16 = 0;
+    /// Fault signal: Fault, EMCY 0x8100.
+    pub const FAULT: i16 = 1;
+    /// Disable voltage command (the default).
+    pub const DISABLE_VOLTAGE: i16 = 2;
+    /// Quick stop command.
+    pub const QUICK_STOP: i16 = 3;
+}
+
+/// 0x1029:1 error behaviour on a communication error (CiA 301).
+pub mod error_behaviour {
+    /// Change to NMT pre-operational if operational.
+    pub const PRE_OPERATIONAL: u8 = 0;
+    /// No change of the NMT state (the default: the TPDOs keep flowing, so the master
+    /// reads the Fault statusword; the torque is off through the fault either way).
+    pub const NO_CHANGE: u8 = 1;
+    /// Change to NMT stopped.
+    pub const STOPPED: u8 = 2;
 }
 
 /// Receive PDOs the drive has (RPDO1).
@@ -161,6 +188,12 @@ pub fn build(d: &OdDefaults) -> Result<Od, OdError> {
     put(idx::IDENTITY, 2, Entry::constant(Unsigned32(PRODUCT_CODE)))?;
     put(idx::IDENTITY, 3, Entry::constant(Unsigned32(REVISION)))?;
     put(idx::IDENTITY, 4, Entry::constant(Unsigned32(id)))?;
+    put(idx::ERROR_BEHAVIOUR, 0, Entry::constant(Unsigned8(1)))?;
+    put(
+        idx::ERROR_BEHAVIOUR,
+        1,
+        Entry::rw(Unsigned8(error_behaviour::NO_CHANGE)),
+    )?;
 
     let pdo = |base: u16,
                cob: u32,
@@ -191,6 +224,11 @@ pub fn build(d: &OdDefaults) -> Result<Od, OdError> {
     )?;
     pdo(idx::TPDO_COMM + 1, 0x280 + id, &[0x606C_0020], &mut put)?;
 
+    put(
+        idx::ABORT_CONNECTION,
+        0,
+        Entry::rw(Integer16(abort_connection::DISABLE_VOLTAGE)),
+    )?;
     put(idx::ERROR_CODE, 0, Entry::ro(Unsigned16(0)))?;
     put(idx::CONTROLWORD, 0, Entry::rw(Unsigned16(0)))?;
     put(idx::STATUSWORD, 0, Entry::ro(Unsigned16(0)))?;

@@ -120,6 +120,7 @@ impl Slave {
         fresh.cycle_adjustable = self.cycle_adjustable;
         if communication_only {
             for index in [
+                idx::ABORT_CONNECTION,
                 idx::CONTROLWORD,
                 idx::MODES,
                 idx::MODES_DISPLAY,
@@ -177,6 +178,13 @@ impl Slave {
     /// Clears the error register and history; the EMCY "error reset" frame to send.
     pub fn clear_errors(&mut self) -> Option<CanFrame> {
         can(self.node.clear_errors())
+    }
+
+    /// Changes the NMT state from inside the device (0x1029 error behaviour): `command`
+    /// is an NMT command specifier (0x02 stop, 0x80 pre-operational).
+    pub fn enter_nmt(&mut self, command: u8) {
+        let id = self.defaults.node_id;
+        let _ = self.node.on_frame(0, &[command, id]);
     }
 
     /// The SYNC COB-ID (0x1005 bits 0..10).
@@ -344,6 +352,10 @@ impl Slave {
                 (!ok).then_some(abort::VALUE_RANGE)
             }
             idx::SYNC_COB_ID => (v & !0x8000_07FF != 0).then_some(abort::VALUE_RANGE),
+            idx::ABORT_CONNECTION => {
+                (!(0..=3).contains(&(v as u16 as i16))).then_some(abort::VALUE_RANGE)
+            }
+            idx::ERROR_BEHAVIOUR if sub == 1 => (v > 2).then_some(abort::VALUE_RANGE),
             i if (idx::RPDO_COMM..idx::RPDO_COMM + od::RPDOS).contains(&i)
                 || (idx::TPDO_COMM..idx::TPDO_COMM + od::TPDOS).contains(&i) =>
             {

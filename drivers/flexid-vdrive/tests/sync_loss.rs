@@ -13,6 +13,8 @@ const PERIOD: Duration = Duration::from_micros(500);
 fn enabled_realtime(drive_toml: &str) -> Dut {
     let drive = linear_drive(&plant(drive_toml), ClockMode::RealTime).unwrap();
     let mut d = Dut::from_drive(drive);
+    // The master declares its cycle: 0x1006 = 500 µs.
+    d.sdo_ok([0x23, 0x06, 0x10, 0x00, 0xF4, 0x01, 0x00, 0x00]);
     d.start();
     d.rpdo(0x0006, 0);
     d.rpdo(0x0007, 0);
@@ -96,6 +98,22 @@ fn sync_loss_supervision_is_configurable_and_can_be_off() {
     d.now += 100 * PERIOD;
     assert!(d.drive.tick(d.now).is_empty());
     assert_eq!(d.drive.state(), State::OperationEnabled);
+}
+
+/// A master that never wrote 0x1006 has not told the drive its SYNC period (python's
+/// canopen runs SYNC at whatever rate its script chose): nothing is supervised, the
+/// heartbeat consumer is what watches such a master.
+#[test]
+fn an_undeclared_period_is_not_supervised() {
+    let drive = linear_drive(&plant(""), ClockMode::RealTime).unwrap();
+    let mut d = Dut::from_drive(drive);
+    d.start();
+    d.rpdo(0x0006, 0);
+    d.rpdo(0x000F, 500);
+    d.sync();
+    d.now += 100 * PERIOD;
+    assert!(d.drive.tick(d.now).is_empty());
+    assert_eq!(d.drive.applied_torque_nm(), 0.5);
 }
 
 #[test]

@@ -84,6 +84,7 @@ impl<B: CanBus> Drive<B, PreOperational> {
             next_heartbeat: None,
             last_cw: Controlword(0),
             last_emcy: None,
+            last_sync: None,
             nmt_operational: false,
             armed: false,
         };

@@ -68,6 +68,7 @@ impl<B: CanBus> Link<B> {
         // frames that arrived before this instant answer an earlier SYNC (see exchange)
         self.exchange.sync_sent(sync_time);
         self.send(&sync, "sending SYNC")?;
+        self.last_sync = Some(sync_time);
         self.last_cw = controlword;
         while !self.exchange.complete() {
             let left = deadline.saturating_duration_since(self.now());
@@ -162,15 +163,20 @@ impl<B: CanBus> Link<B> {
                 Some(s) => next_controlword(s, target),
             }
             .after(self.last_cw);
+            // One SYNC per cycle period, from the last one sent (by an earlier walk or
+            // the cycle).
+            self.wait_for_slot();
             // Paced at the cycle period, but the feedback of a slow drive or bus (an
             // emulated machine, a loaded host) is awaited up to WALK_FEEDBACK_WAIT: a
             // TPDO that misses its cycle's deadline is stale and is never used.
             let cycle_start = self.now();
-            let deadline = cycle_start + period;
             let feedback_deadline = cycle_start + period.max(WALK_FEEDBACK_WAIT);
             let (_, _) = self.exchange(cw, 0, feedback_deadline, Mode::Walk)?;
             seen = self.state();
             if seen == Some(target.state()) {
+                // The walk's last cycle lasts its whole period too: whoever sends the
+                // next SYNC (the caller's first cycle) sends it a period after this one.
+                self.wait_for_slot();
                 return Ok(());
             }
             if self.now().duration_since(start) >= limit {
@@ -187,7 +193,14 @@ impl<B: CanBus> Link<B> {
                     after: limit,
                 });
             }
-            let left = deadline.saturating_duration_since(self.now());
+        }
+    }
+
+    /// Sleeps until one cycle period after the last SYNC sent (at once if none was, or
+    /// if that time has passed).
+    fn wait_for_slot(&self) {
+        if let Some(last) = self.last_sync {
+            let left = (last + self.cfg.cycle_period).saturating_duration_since(self.now());
             if !left.is_zero() {
                 std::thread::sleep(left);
             }

@@ -89,6 +89,9 @@ struct Link<B: CanBus> {
     next_heartbeat: Option<Instant>,
     last_cw: Controlword,
     last_emcy: Option<EmergencyMessage>,
+    /// When the last SYNC went out: the CiA 402 walks keep one SYNC per cycle period
+    /// from it.
+    last_sync: Option<Instant>,
     nmt_operational: bool,
     armed: bool,
 }

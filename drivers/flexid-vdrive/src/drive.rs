@@ -111,6 +111,10 @@ pub struct VirtualDrive<P: Physics> {
     /// Whether the master has written 0x1006 since the last reset: only a period the
     /// master declared is supervised (the default is the plant file's, not the master's).
     sync_period_declared: bool,
+    /// An RPDO of the wrong length was reported (EMCY once until a right one comes).
+    pdo_length_error: bool,
+    /// A SYNC of the wrong length was reported (EMCY once until a right one comes).
+    sync_length_error: bool,
     fault: Option<FaultKind>,
     /// Torque held over the current cycle [N m].
     applied_nm: f64,
@@ -155,6 +159,8 @@ impl<P: Physics> VirtualDrive<P> {
             consumer: Consumer::default(),
             sync_watch,
             sync_period_declared: false,
+            pdo_length_error: false,
+            sync_length_error: false,
             fault: None,
             applied_nm: 0.0,
             limited: false,
@@ -198,8 +204,15 @@ impl<P: Physics> VirtualDrive<P> {
             return out;
         }
         if cob == self.slave.sync_cob_id() {
+            // no 0x1019 (counter overflow 0): a SYNC carries no data (CiA 301)
+            if data.is_empty() {
+                self.sync_length_error = false;
+            } else if !self.sync_length_error {
+                self.sync_length_error = true;
+                self.warn(crate::slave::EMCY_SYNC_LENGTH, &mut out);
+            }
             if data.len() <= 1 {
-                self.sync_into(now, &mut out);
+                self.sync_into(now, &mut out); // a counter byte: still a SYNC
             } else {
                 self.stats.ignored += 1;
             }
@@ -244,7 +257,19 @@ impl<P: Physics> VirtualDrive<P> {
                     self.abort_connection(&mut out);
                 }
             }
-            SlaveEvent::Rpdo => self.on_controlword(&mut out),
+            SlaveEvent::Rpdo => {
+                self.pdo_length_error = false;
+                self.on_controlword(&mut out);
+            }
+            SlaveEvent::RpdoLength { code, processed } => {
+                if !self.pdo_length_error {
+                    self.pdo_length_error = true;
+                    self.warn(code, &mut out);
+                }
+                if processed {
+                    self.on_controlword(&mut out);
+                }
+            }
             SlaveEvent::Written(a) => self.on_written(a, now, &mut out),
         }
         out
@@ -434,7 +459,7 @@ impl<P: Physics> VirtualDrive<P> {
         if before == State::Fault && after != State::Fault {
             self.fault = None;
             od::set(self.slave.od_mut(), idx::ERROR_CODE, Value::Unsigned16(0));
-            out.push(self.slave.clear_errors());
+            out.push(self.slave.error_reset());
         }
         if after == State::OperationEnabled && before != State::OperationEnabled {
             self.velocity_integral = 0.0;
@@ -469,6 +494,17 @@ impl<P: Physics> VirtualDrive<P> {
                 self.limited = false;
                 self.publish_status();
             }
+        }
+    }
+
+    /// A communication EMCY that is no fault (wrong PDO or SYNC length): 0x1001 and
+    /// 0x1003 record it; not sent in NMT stopped (CiA 301).
+    fn warn(&mut self, code: u16, out: &mut Outputs) {
+        tracing::warn!(code, "EMCY");
+        let reg = canopen_rs::ErrorRegister(canopen_rs::ErrorRegister::COMMUNICATION);
+        let emcy = self.slave.emergency(code, reg);
+        if !matches!(self.slave.nmt(), NmtState::Stopped | NmtState::Initialising) {
+            out.push(emcy);
         }
     }
 
@@ -651,11 +687,8 @@ impl<P: Physics> VirtualDrive<P> {
 
     fn publish_status(&mut self) {
         let state = self.dc.state();
-        let mut sw = state.status_bits();
-        if self.limited && state == State::OperationEnabled {
-            sw |= cia402::SW_INTERNAL_LIMIT;
-        }
         let mode = od::get_i64(self.slave.od(), idx::MODES).unwrap_or(0) as i8;
+        let sw = cia402::statusword(state, mode, self.limited);
         let od = self.slave.od_mut();
         od::set(od, idx::STATUSWORD, Value::Unsigned16(sw));
         od::set(od, idx::MODES_DISPLAY, Value::Integer8(mode));

@@ -86,6 +86,8 @@ pub mod error_behaviour {
 pub const RPDOS: u16 = 1;
 /// Transmit PDOs the drive has (TPDO1, TPDO2).
 pub const TPDOS: u16 = 2;
+/// Entries of the pre-defined error field 0x1003.
+pub const ERROR_HISTORY: usize = 8;
 /// Mapping entries per PDO (canopen-rs's `MAX_PDO_MAPPING`).
 pub const MAX_MAPPED: u8 = 8;
 
@@ -164,8 +166,9 @@ pub fn build(d: &OdDefaults) -> Result<Od, OdError> {
         Entry::constant(Unsigned32(DEVICE_TYPE)),
     )?;
     put(idx::ERROR_REGISTER, 0, Entry::ro(Unsigned8(0)))?;
-    put(idx::ERROR_FIELD, 0, Entry::ro(Unsigned8(0)))?;
-    for sub in 1..=8 {
+    // sub 0 is writable: 0 clears the history (any other value is refused)
+    put(idx::ERROR_FIELD, 0, Entry::rw(Unsigned8(0)))?;
+    for sub in 1..=ERROR_HISTORY as u8 {
         put(idx::ERROR_FIELD, sub, Entry::ro(Unsigned32(0)))?;
     }
     put(idx::SYNC_COB_ID, 0, Entry::rw(Unsigned32(0x80)))?;

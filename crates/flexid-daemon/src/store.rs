@@ -134,6 +134,13 @@ pub fn valid_sweep_id(id: &str) -> bool {
             .all(|b| b.is_ascii_alphanumeric() || b == b'-' || b == b'_')
 }
 
+/// The whole excitation periods (transient included) in the first `samples` rows of a
+/// recording described by `sidecar`; `None` when its excitation is not periodic.
+pub fn whole_periods(samples: usize, sidecar: &Sidecar) -> Option<usize> {
+    let n = sidecar.excitation.as_ref()?.period_samples;
+    (n > 0).then(|| samples / n)
+}
+
 /// The store under `data_dir`.
 #[derive(Debug, Clone)]
 pub struct Store {
@@ -244,6 +251,10 @@ impl Store {
             if let Ok(mut sc) = serde_json::from_str::<Sidecar>(&text) {
                 sc.ended_because = Some("interrupted: the daemon stopped during the sweep".into());
                 write_json(&side, &sc)?;
+                // the marker holds the status of the start: count what is on disk
+                if let Some(p) = whole_periods(samples, &sc) {
+                    st.periods_done = p;
+                }
             }
         }
         st.state = SweepState::Interrupted;
@@ -427,6 +438,54 @@ mod tests {
         assert!(valid_sweep_id(&id), "{id}");
         assert_eq!(id.len(), "20261122T201810Z-3fa2c1".len(), "{id}");
         assert!(!valid_sweep_id("../etc"));
+    }
+
+    /// Issue 16, item 2: a sweep the daemon did not live to finish is recovered with the
+    /// whole periods on disk counted, not the 0 of the marker written at its start.
+    #[test]
+    fn a_recovered_sweep_counts_the_whole_periods_on_disk() {
+        let d = tempfile::tempdir().unwrap();
+        let store = Store::open(d.path()).unwrap();
+        let request: SweepRequest = serde_json::from_str(
+            r#"{"excitation":"multisine","band_hz":[2,300],"amplitude_nm":0.5,"periods":4,"duration_s":5}"#,
+        )
+        .unwrap();
+        let status = SweepStatus {
+            id: "20261126T180000Z-000001".into(),
+            axis: "a1".into(),
+            state: SweepState::Running,
+            reason: None,
+            started_unix_s: 0.0,
+            ended_unix_s: None,
+            periods_done: 0,
+            samples: 0,
+            request,
+            has_result: false,
+            level: None,
+            has_diagnosis: false,
+        };
+        let sidecar: Sidecar = serde_json::from_str(
+            r#"{"sample_rate_hz": 100.0, "excitation": {"kind": "multisine", "period_samples": 10,
+                "periods": 4, "transient_periods": 1, "excited_lines": [1, 2]}}"#,
+        )
+        .unwrap();
+        let mut files = store.begin(&status, &sidecar).unwrap();
+        for first in [0, 10, 20] {
+            let block = SampleBlock {
+                first_sample: first,
+                torque_cmd_nm: vec![0.1; 10],
+                position_rad: vec![0.2; 10],
+            };
+            files.append(&block, 100.0).unwrap();
+        }
+        drop(files); // the daemon dies: the marker stays
+        let got = store.recover();
+        assert_eq!(got.len(), 1);
+        assert_eq!(got[0].state, SweepState::Interrupted);
+        assert_eq!(got[0].samples, 30);
+        assert_eq!(got[0].periods_done, 3, "whole periods on disk");
+        let on_disk = read_status(&store.dir("a1", &status.id).join(STATUS)).unwrap();
+        assert_eq!(on_disk.periods_done, 3);
     }
 
     #[test]

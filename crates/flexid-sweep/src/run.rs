@@ -81,7 +81,9 @@ impl StopReason {
                 | MasterError::Disabled { .. }
                 | MasterError::NmtStateChanged { .. } => StopReason::DriveFault(text),
                 MasterError::TpdoLost { .. } => StopReason::FeedbackLost(text),
-                MasterError::Bus { .. } => StopReason::BusError(text),
+                MasterError::Bus { .. } | MasterError::ErrorFrameBurst { .. } => {
+                    StopReason::BusError(text)
+                }
                 _ => StopReason::DriveError(text),
             };
         }

@@ -53,13 +53,7 @@ impl<B: CanBus> Link<B> {
                     self.on_event(ev, mode)?;
                 }
                 Ok(None) => break,
-                Err(source) => {
-                    return Err(MasterError::Bus {
-                        node,
-                        during: "receiving feedback",
-                        source,
-                    })
-                }
+                Err(source) => self.on_bus_error(source)?,
             }
         }
         let [rpdo, sync] = self.exchange.begin(controlword.0, torque_permille);
@@ -81,13 +75,7 @@ impl<B: CanBus> Link<B> {
                     self.on_event(ev, mode)?;
                 }
                 Ok(None) => {}
-                Err(source) => {
-                    return Err(MasterError::Bus {
-                        node,
-                        during: "receiving feedback",
-                        source,
-                    })
-                }
+                Err(source) => self.on_bus_error(source)?,
             }
         }
         let (complete, consecutive) = self.exchange.end();
@@ -96,6 +84,34 @@ impl<B: CanBus> Link<B> {
             return Err(MasterError::TpdoLost { node, consecutive });
         }
         Ok((sync_time, complete))
+    }
+
+    /// A bus error while receiving: tolerated (counted) or the end of the exchange, as
+    /// the error-frame policy says.
+    fn on_bus_error(&mut self, source: flexid_can::BusError) -> Result<(), MasterError> {
+        use super::error_frames::Verdict;
+        let node = self.node();
+        match self.error_watch.on_error(&source, self.now()) {
+            Verdict::Tolerate => {
+                tracing::warn!(node, "{source} (tolerated)");
+                if matches!(source, flexid_can::BusError::ErrorFrame { .. }) {
+                    self.exchange.counters.bus_errors += 1;
+                }
+                Ok(())
+            }
+            Verdict::Burst { frames } => Err(MasterError::ErrorFrameBurst {
+                node,
+                frames,
+                window: self.cfg.error_frames.window,
+                max: self.cfg.error_frames.max_frames,
+                last: source.to_string(),
+            }),
+            Verdict::Abort => Err(MasterError::Bus {
+                node,
+                during: "receiving feedback",
+                source,
+            }),
+        }
     }
 
     fn on_event(&mut self, ev: Event, mode: Mode) -> Result<(), MasterError> {

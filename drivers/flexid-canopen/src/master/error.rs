@@ -177,6 +177,20 @@ pub enum MasterError {
         /// The value given.
         torque_nm: f64,
     },
+    /// More CAN error frames than the error-frame policy allows within its window.
+    #[error("node {node}: {frames} CAN error frames within {window:?} (the policy allows {max}); last: {last}")]
+    ErrorFrameBurst {
+        /// The drive's node-id.
+        node: u8,
+        /// Error frames within the window.
+        frames: u16,
+        /// The policy's window.
+        window: Duration,
+        /// The policy's most frames.
+        max: u16,
+        /// The last error frame, decoded.
+        last: String,
+    },
     /// The master configuration is invalid.
     #[error("invalid master configuration: {0}")]
     Config(String),
@@ -193,7 +207,12 @@ pub fn emcy_text(code: u16) -> &'static str {
         0x4310 => "excess drive temperature",
         0x7121 => "motor blocked",
         0x7300..=0x73FF => "sensor (encoder) error",
+        0x8100 => "communication (connection aborted)",
         0x8130 => "life guard or heartbeat error",
+        0x8210 => "PDO not processed due to length error",
+        0x8220 => "PDO length exceeded",
+        0x8240 => "unexpected SYNC data length",
+        0x8700 => "sync controller (SYNC lost)",
         0x8611 => "following error",
         _ => match code >> 8 {
             0x10 => "generic error",

@@ -85,6 +85,7 @@ impl<B: CanBus> Drive<B, PreOperational> {
             last_cw: Controlword(0),
             last_emcy: None,
             last_sync: None,
+            drive_nmt: None,
             error_watch: super::error_frames::ErrorFrameWatch::new(config.error_frames),
             nmt_operational: false,
             armed: false,

@@ -17,6 +17,8 @@ const NMT_START: u8 = 0x01;
 /// Longest wait for one step's feedback in the CiA 402 walks (enable, disable, quick stop).
 const WALK_FEEDBACK_WAIT: Duration = Duration::from_millis(20);
 const NMT_ENTER_PRE_OPERATIONAL: u8 = 0x80;
+/// Heartbeat state byte of an NMT stopped node (CiA 301).
+const NMT_STATE_STOPPED: u8 = 0x04;
 
 /// How strict one exchange is.
 #[derive(Clone, Copy, PartialEq, Eq)]
@@ -129,8 +131,11 @@ impl<B: CanBus> Link<B> {
                     });
                 }
             }
-            Event::NmtState(state) if mode == Mode::Strict => {
-                return Err(MasterError::NmtStateChanged { node, state });
+            Event::NmtState(state) => {
+                self.drive_nmt = Some(state);
+                if mode == Mode::Strict {
+                    return Err(MasterError::NmtStateChanged { node, state });
+                }
             }
             _ => {}
         }
@@ -146,6 +151,8 @@ impl<B: CanBus> Link<B> {
         let node = self.node();
         let (error_code, register) = match self.last_emcy {
             Some(m) => (m.error_code, m.error_register.0),
+            // a stopped node answers no SDO: nothing to read
+            None if self.drive_nmt == Some(NMT_STATE_STOPPED) => (0, 0),
             None => {
                 let code_index = self.profile.objects.error_code;
                 let code = self.sdo.read_u16(code_index, 0).unwrap_or(0);
@@ -173,6 +180,10 @@ impl<B: CanBus> Link<B> {
         // to switch on: Disable voltage until the drive reports).
         let mut seen = self.state();
         loop {
+            // A stopped node processes no PDO: walking it down can only time out.
+            if target == Target::SwitchOnDisabled && self.drive_nmt == Some(NMT_STATE_STOPPED) {
+                return Err(MasterError::NmtStopped { node });
+            }
             let cw = match seen {
                 None => Controlword::DISABLE_VOLTAGE,
                 Some(State::OperationEnabled) if quick_stop_first => Controlword::QUICK_STOP,
@@ -241,10 +252,11 @@ impl<B: CanBus> Drive<B, Configured> {
     pub fn enable(mut self) -> Result<Drive<B, Enabled>, MasterError> {
         let l = &mut self.link;
         l.drain();
-        if !l.nmt_operational {
+        if !l.nmt_operational || l.drive_nmt.is_some() {
             l.nmt(NMT_START, "NMT start")?;
             l.nmt_operational = true;
         }
+        l.drive_nmt = None;
         l.exchange = Exchange::new(l.node());
         l.unwrap = PositionUnwrap::default();
         l.last_emcy = None;

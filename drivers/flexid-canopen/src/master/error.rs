@@ -148,6 +148,16 @@ pub enum MasterError {
         /// The reported state byte (0x00 boot-up, 0x04 stopped, 0x7F pre-operational).
         state: u8,
     },
+    /// The drive is NMT stopped (its heartbeat says 0x04): it answers no PDO and no SDO,
+    /// so the master cannot walk it down; its abort connection option code (0x6007)
+    /// decides what its power stage did when it stopped.
+    #[error(
+        "node {node} is NMT stopped: it answers no PDO and no SDO, so it cannot be disabled          by the master; its abort connection option (0x6007) decides its power stage"
+    )]
+    NmtStopped {
+        /// The drive's node-id.
+        node: u8,
+    },
     /// The CiA 402 walk did not reach its target in time.
     #[error("node {node}: did not reach {target} within {after:?}, last state {last}")]
     StateMachine {

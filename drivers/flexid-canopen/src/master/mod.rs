@@ -91,6 +91,9 @@ struct Link<B: CanBus> {
     next_heartbeat: Option<Instant>,
     last_cw: Controlword,
     last_emcy: Option<EmergencyMessage>,
+    /// The NMT state the drive's heartbeat last reported when it was not operational
+    /// (0x04 stopped, 0x7F pre-operational); cleared by the master's NMT start.
+    drive_nmt: Option<u8>,
     /// The error frames of the recent window (the error-frame policy).
     error_watch: error_frames::ErrorFrameWatch,
     /// When the last SYNC went out: the CiA 402 walks keep one SYNC per cycle period

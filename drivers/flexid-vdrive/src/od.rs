@@ -82,6 +82,11 @@ pub mod error_behaviour {
     pub const STOPPED: u8 = 2;
 }
 
+/// Bit 30 of a TPDO COB-ID (CiA 301): no RTR allowed. Always set: the drive does not
+/// serve PDOs by remote request, as most CiA 402 drives today (CiA AN 802 advises against
+/// remote frames, CAN FD has none, and a synchronous TPDO already comes every SYNC).
+pub const TPDO_NO_RTR: u32 = 0x4000_0000;
+
 /// Receive PDOs the drive has (RPDO1).
 pub const RPDOS: u16 = 1;
 /// Transmit PDOs the drive has (TPDO1, TPDO2).
@@ -221,11 +226,16 @@ pub fn build(d: &OdDefaults) -> Result<Od, OdError> {
     )?;
     pdo(
         idx::TPDO_COMM,
-        0x180 + id,
+        TPDO_NO_RTR | (0x180 + id),
         &[0x6041_0010, 0x6064_0020, 0x6077_0010],
         &mut put,
     )?;
-    pdo(idx::TPDO_COMM + 1, 0x280 + id, &[0x606C_0020], &mut put)?;
+    pdo(
+        idx::TPDO_COMM + 1,
+        TPDO_NO_RTR | (0x280 + id),
+        &[0x606C_0020],
+        &mut put,
+    )?;
 
     put(
         idx::ABORT_CONNECTION,

@@ -302,6 +302,16 @@ impl Slave {
                     SlaveEvent::Written(a)
                 }
                 Some(a) => {
+                    let tpdo_comm = idx::TPDO_COMM..idx::TPDO_COMM + od::TPDOS;
+                    if tpdo_comm.contains(&a.index) && a.subindex == 1 {
+                        // RTR is not served: bit 30 reads 1 whatever was written
+                        if let Some(v) = od::get_u32(self.od(), a.index, 1) {
+                            let _ = self
+                                .node
+                                .od_mut()
+                                .set(a, Value::Unsigned32(v | od::TPDO_NO_RTR));
+                        }
+                    }
                     if (0x1400..=0x1BFF).contains(&a.index) {
                         self.node.configure_pdos_from_od();
                         self.sync_count = [0; od::TPDOS as usize];

@@ -34,4 +34,10 @@ async fn canopen_backend_sweeps_the_simulated_drive() {
     assert!(model["masses"].as_u64().unwrap() >= 2, "{}", result.data);
     let csv = get_text(&format!("{base}/api/v1/sweeps/{id}/recording.csv")).await;
     assert_eq!(csv.lines().count(), 10_001);
+    // the columns of `flexid sweep` (issue 16, item 3)
+    assert_eq!(
+        csv.lines().next().unwrap(),
+        "time_s,torque_cmd_nm,position_rad,velocity_rad_s,torque_actual_nm"
+    );
+    assert!(csv.lines().skip(1).all(|l| l.split(',').count() == 5));
 }

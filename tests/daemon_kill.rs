@@ -1,9 +1,10 @@
 //! The daemon's CANopen path when things go wrong, against the real `flexid-vdrive`
 //! (lock-step, plants/e2e_3mass.toml) on the user-space UDP bus:
 //!
-//! * the daemon killed with SIGKILL mid-sweep: the drive stops the motor within its
-//!   heartbeat consumer time (EMCY 0x8130), and the restarted daemon reports the sweep as
-//!   interrupted with its rows up to the last period on disk;
+//! * the daemon killed with SIGKILL mid-sweep: the drive stops the motor on the lost SYNC
+//!   (EMCY 0x8700, before its heartbeat consumer time), and the restarted daemon reports
+//!   the sweep as interrupted with its rows up to the last period on disk, and those
+//!   periods counted;
 //! * the drive faulting (EMCY), a bus error, an operator abort and the position window each
 //!   end the sweep with the reason, the rows measured so far kept.
 //!
@@ -90,13 +91,14 @@ async fn sigkill_mid_sweep_the_drive_stops_and_the_restart_reports_the_saved_per
     let killed = Instant::now();
     let emcy = first_emcy(&mut watch, killed, Duration::from_secs(3));
     let (after, code) = emcy.expect("no EMCY from the drive within 3 s of the daemon's death");
-    assert_eq!(code, 0x8130, "EMCY {code:#06x}, not heartbeat/life guard");
+    assert_eq!(code, 0x8700, "EMCY {code:#06x}, not SYNC lost");
     eprintln!(
         "drive faulted {} ms after the daemon was killed",
         after.as_millis()
     );
-    // 300 ms consumer time from the last heartbeat before the kill; margin for a loaded host
-    assert!(after <= Duration::from_millis(500), "{after:?}");
+    // the lock-step drive's SYNC window is 50 ms from the last SYNC before the kill (the
+    // heartbeat consumer's 300 ms would come later); margin for a loaded host
+    assert!(after <= Duration::from_millis(250), "{after:?}");
 
     // restart: the sweep is reported interrupted, with whole periods saved
     let d2 = DaemonProc::start(FLEXID, &cfg);
@@ -108,6 +110,11 @@ async fn sigkill_mid_sweep_the_drive_stops_and_the_restart_reports_the_saved_per
         samples % PERIOD_SAMPLES,
         0,
         "rows up to a period's end: {st}"
+    );
+    assert_eq!(
+        st["periods_done"].as_u64().unwrap(),
+        samples / PERIOD_SAMPLES,
+        "the whole periods on disk counted: {st}"
     );
     let dir = tmp.path().join("data/k1").join(&id);
     assert_eq!(rows(&dir) as u64, samples);

@@ -253,11 +253,12 @@ fn ctrl_c_mid_sweep_ramps_down_disables_and_saves() {
 }
 
 /// The master dies (SIGKILL: no disable, no last frame) in Operation enabled: the drive's
-/// heartbeat consumer (0x1016, written by the master at bring-up: 300 ms) must stop the
-/// motor on its own and say so with EMCY 0x8130. A third node on the bus (this test)
-/// watches for the EMCY and times it from the kill.
+/// SYNC-loss supervision (issue 16, item 12; in lock-step its window is at least 50 ms,
+/// `flexid_vdrive::sync_watch::LOCKSTEP_FLOOR`) stops the motor on its own, before the
+/// heartbeat consumer's 300 ms, and says so with EMCY 0x8700. A third node on the bus
+/// (this test) watches for the EMCY and times it from the kill.
 #[test]
-fn master_killed_mid_sweep_the_drive_stops_within_its_consumer_time() {
+fn master_killed_mid_sweep_the_drive_stops_on_the_lost_sync() {
     use flexid_can::{CanBus, UdpConfig, UdpMulticastBus};
     if !loopback_multicast() {
         return;
@@ -277,18 +278,141 @@ fn master_killed_mid_sweep_the_drive_stops_within_its_consumer_time() {
     let _ = child.wait();
     let emcy = first_emcy(&mut watch, killed, Duration::from_secs(3));
     let (after, code) = emcy.expect("no EMCY from the drive within 3 s of the master's death");
-    assert_eq!(
-        code, 0x8130,
-        "EMCY code {code:#06x}, not heartbeat/life guard"
-    );
+    assert_eq!(code, 0x8700, "EMCY code {code:#06x}, not SYNC lost");
     eprintln!(
         "drive faulted {} ms after the master was killed",
         after.as_millis()
     );
-    // 300 ms consumer time counted from the last heartbeat, which preceded the kill; the
-    // margin is for a loaded test machine.
+    // 50 ms from the last SYNC, which preceded the kill; the margin is for a loaded test
+    // machine (and stays below the heartbeat consumer's 300 ms).
     assert!(
-        after <= Duration::from_millis(300 + 200),
-        "the drive faulted {after:?} after the master died (consumer time 300 ms)"
+        after <= Duration::from_millis(50 + 200),
+        "the drive faulted {after:?} after the master died (lock-step SYNC window 50 ms)"
+    );
+}
+
+/// `flexid sweep --clock realtime` at 250 Hz against the real-time drive, `cmd` run to its
+/// end or killed by `kill`; a third node records every frame's receive stamp meanwhile.
+fn realtime_session(
+    port: u16,
+    kill_after_period: bool,
+) -> (Vec<(Instant, flexid_can::CanFrame)>, tempfile::TempDir) {
+    use flexid_can::{CanBus, UdpConfig, UdpMulticastBus};
+    let bus_name = bus(port);
+    let _vd = VDrive::start_clocked(&bus_name, &plant_path(), "realtime");
+    let group: std::net::IpAddr = GROUP.parse().unwrap();
+    let mut watch = UdpMulticastBus::open(UdpConfig::group_port(group, port)).unwrap();
+    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let stop2 = stop.clone();
+    let rec = std::thread::spawn(move || {
+        let mut got = Vec::new();
+        while !stop2.load(std::sync::atomic::Ordering::Relaxed) {
+            if let Ok(Some(r)) = watch.recv_timeout(Duration::from_millis(20)) {
+                got.push((r.timestamp, r.frame));
+            }
+        }
+        got
+    });
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("rt");
+    let mut child = Command::new(FLEXID)
+        .args(["sweep", "--bus", &bus_name, "--node", "5"])
+        .args([
+            "--cycle-hz",
+            "250",
+            "--clock",
+            "realtime",
+            "--resolution-hz",
+            "5",
+        ])
+        .args(["--periods", if kill_after_period { "40" } else { "4" }])
+        .args(["--masses", "3", "--out", out.to_str().unwrap()])
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let err = child.stderr.take().unwrap();
+    let (tx, rx) = std::sync::mpsc::channel();
+    let h = std::thread::spawn(move || {
+        for l in BufReader::new(err).lines().map_while(Result::ok) {
+            eprintln!("{l}");
+            if l.contains("period 2/") {
+                let _ = tx.send(());
+            }
+        }
+    });
+    if kill_after_period {
+        rx.recv_timeout(Duration::from_secs(60))
+            .expect("the sweep reached its second period");
+        child.kill().unwrap();
+    }
+    let _ = wait(&mut child, Duration::from_secs(120));
+    let _ = h.join();
+    std::thread::sleep(Duration::from_millis(300));
+    stop.store(true, std::sync::atomic::Ordering::Relaxed);
+    (rec.join().unwrap(), dir)
+}
+
+/// Issue 16, item 1: exactly one SYNC per cycle over a whole real-time sweep, enable and
+/// disable included: no two SYNCs closer than half a period (the master sent two 0.16-0.33
+/// ms apart when it switched from the enable walk to the excitation).
+#[test]
+fn a_realtime_sweep_sends_one_sync_per_cycle() {
+    if !loopback_multicast() {
+        return;
+    }
+    let (frames, _dir) = realtime_session(43226, false);
+    let syncs: Vec<Instant> = frames
+        .iter()
+        .filter(|(_, f)| f.id() == flexid_can::CanId::Standard(0x080))
+        .map(|(t, _)| *t)
+        .collect();
+    assert!(syncs.len() > 250, "{} SYNCs recorded", syncs.len());
+    let period = Duration::from_millis(4);
+    let (k, gap) = syncs
+        .windows(2)
+        .map(|w| w[1].duration_since(w[0]))
+        .enumerate()
+        .min_by_key(|(_, g)| *g)
+        .unwrap();
+    eprintln!(
+        "{} SYNCs; closest two: {gap:?} apart (SYNC {k})",
+        syncs.len()
+    );
+    assert!(
+        gap >= period / 2,
+        "SYNC {k} and {} only {gap:?} apart (period {period:?})",
+        k + 1
+    );
+}
+
+/// Issue 16, done-when: the real-time drive stops producing torque within 3 SYNC periods
+/// of losing its master. `flexid sweep --clock realtime` (0x1006 = 4000 µs) is killed
+/// mid-sweep; the EMCY 0x8700 comes within 3 periods of the first SYNC that did not come.
+#[test]
+fn realtime_master_killed_the_drive_stops_within_3_sync_periods() {
+    if !loopback_multicast() {
+        return;
+    }
+    let (frames, _dir) = realtime_session(43227, true);
+    let emcy = frames
+        .iter()
+        .position(|(_, f)| f.id() == flexid_can::CanId::Standard(0x085) && f.data().len() == 8)
+        .expect("an EMCY after the master died");
+    let (at, f) = frames[emcy];
+    assert_eq!(u16::from_le_bytes([f.data()[0], f.data()[1]]), 0x8700);
+    let last_sync = frames[..emcy]
+        .iter()
+        .rev()
+        .find(|(_, f)| f.id() == flexid_can::CanId::Standard(0x080))
+        .expect("SYNCs before the EMCY")
+        .0;
+    let period = Duration::from_millis(4);
+    let after = at.duration_since(last_sync + period);
+    eprintln!("EMCY 0x8700 {after:?} after the first missing SYNC");
+    assert!(
+        after <= 3 * period,
+        "EMCY {after:?} after the first missing SYNC (3 periods: {:?})",
+        3 * period
     );
 }

@@ -66,6 +66,10 @@ pub struct SampleBlock {
     pub torque_cmd_nm: Vec<f64>,
     /// Motor position [rad].
     pub position_rad: Vec<f64>,
+    /// Motor velocity [rad/s].
+    pub velocity_rad_s: Vec<f64>,
+    /// Torque actual [N m].
+    pub torque_actual_nm: Vec<f64>,
 }
 
 /// Cycle counters reported with every period.

@@ -206,15 +206,18 @@ impl DriveJob {
             (other, _) => (Outcome::Failed, other.text()),
         };
         // the recording is the rows of the one sink (what the relay streamed to disk)
-        let (torque, position) = self.rows.columns(outcome.rows);
+        let rows = self.rows.columns(outcome.rows);
         let fs = self.plan.cycle_hz;
+        // the columns of `flexid sweep` (flexid_sweep::RecordedRows): one format
         let mut recording = Recording {
-            time_s: (0..torque.len()).map(|k| k as f64 / fs).collect(),
-            torque_cmd_nm: torque,
-            position_rad: Some(position),
-            velocity_rad_s: None,
+            time_s: (0..rows.torque_cmd_nm.len())
+                .map(|k| k as f64 / fs)
+                .collect(),
+            torque_cmd_nm: rows.torque_cmd_nm,
+            position_rad: Some(rows.position_rad),
+            velocity_rad_s: Some(rows.velocity_rad_s),
             acceleration_rad_s2: None,
-            torque_actual_nm: None,
+            torque_actual_nm: Some(rows.torque_actual_nm),
             sample_rate_hz: fs,
             sidecar: outcome.sidecar,
         };

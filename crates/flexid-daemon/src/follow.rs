@@ -130,13 +130,19 @@ pub(crate) fn follow(f: Follow<'_>, events: &mut mpsc::Receiver<SweepEvent>) -> 
     let (outcome, mut reason, recording) = ended;
     // rows the backend did not stream: append them from the final recording
     if let Some(rec) = &recording {
-        if let Some(pos) = &rec.position_rad {
-            let n = rec.len().min(pos.len());
+        if let (Some(pos), Some(vel), Some(ta)) = (
+            &rec.position_rad,
+            &rec.velocity_rad_s,
+            &rec.torque_actual_nm,
+        ) {
+            let n = rec.len().min(pos.len()).min(vel.len()).min(ta.len());
             if n > samples {
                 let block = super::backend::SampleBlock {
                     first_sample: samples,
                     torque_cmd_nm: rec.torque_cmd_nm[samples..n].to_vec(),
                     position_rad: pos[samples..n].to_vec(),
+                    velocity_rad_s: vel[samples..n].to_vec(),
+                    torque_actual_nm: ta[samples..n].to_vec(),
                 };
                 match files.append(&block, sample_rate_hz) {
                     Ok(()) => samples = n,

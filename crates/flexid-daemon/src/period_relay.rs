@@ -21,6 +21,8 @@ use tokio::sync::mpsc;
 pub struct PeriodRows {
     torque_nm: Box<[AtomicU64]>,
     position_rad: Box<[AtomicU64]>,
+    velocity_rad_s: Box<[AtomicU64]>,
+    torque_actual_nm: Box<[AtomicU64]>,
     /// Rows readable by the relay (only whole blocks are published).
     published: AtomicUsize,
     /// Blocks (periods) published so far.
@@ -44,6 +46,8 @@ impl PeriodRows {
         PeriodRows {
             torque_nm: atomics(rows),
             position_rad: atomics(rows),
+            velocity_rad_s: atomics(rows),
+            torque_actual_nm: atomics(rows),
             published: AtomicUsize::new(0),
             blocks: AtomicUsize::new(0),
             block_end_ns: atomics(blocks),
@@ -57,10 +61,17 @@ impl PeriodRows {
 
     /// Store row `k` (ignored beyond the capacity: the ramp after the last row).
     #[inline]
-    pub fn write(&self, k: usize, torque_nm: f64, position_rad: f64) {
-        if let (Some(u), Some(p)) = (self.torque_nm.get(k), self.position_rad.get(k)) {
-            u.store(torque_nm.to_bits(), Ordering::Relaxed);
-            p.store(position_rad.to_bits(), Ordering::Relaxed);
+    pub fn write(&self, k: usize, row: &flexid_sweep::Row) {
+        let columns = [
+            (&self.torque_nm, row.torque_setpoint_nm),
+            (&self.position_rad, row.position_rad),
+            (&self.velocity_rad_s, row.velocity_rad_s),
+            (&self.torque_actual_nm, row.torque_actual_nm),
+        ];
+        for (column, v) in columns {
+            if let Some(a) = column.get(k) {
+                a.store(v.to_bits(), Ordering::Relaxed);
+            }
         }
     }
 
@@ -84,14 +95,21 @@ impl PeriodRows {
         self.done.store(true, Ordering::Release);
     }
 
-    fn read(&self, from: usize, to: usize) -> (Vec<f64>, Vec<f64>) {
+    /// Rows `from..to` as a block (the four columns of the sweep loop's rows).
+    fn read(&self, from: usize, to: usize) -> SampleBlock {
         let get = |v: &[AtomicU64]| -> Vec<f64> {
             v[from..to]
                 .iter()
                 .map(|a| f64::from_bits(a.load(Ordering::Relaxed)))
                 .collect()
         };
-        (get(&self.torque_nm), get(&self.position_rad))
+        SampleBlock {
+            first_sample: from,
+            torque_cmd_nm: get(&self.torque_nm),
+            position_rad: get(&self.position_rad),
+            velocity_rad_s: get(&self.velocity_rad_s),
+            torque_actual_nm: get(&self.torque_actual_nm),
+        }
     }
 }
 
@@ -135,13 +153,14 @@ pub fn spawn_relay(
                     } else {
                         avail
                     };
-                    let (u, p) = rows.read(sent, to);
+                    let samples = rows.read(sent, to);
                     let mut frf_so_far = None;
                     if let Some(est) = plan.estimator.as_mut() {
+                        let (u, p) = (&samples.torque_cmd_nm, &samples.position_rad);
                         vel.resize(u.len(), 0.0);
                         prev_pos =
-                            differenced_velocity_into(&p, plan.sample_rate_hz, prev_pos, &mut vel);
-                        if est.push(&u, &vel).is_ok() && est.periods_done() > 0 {
+                            differenced_velocity_into(p, plan.sample_rate_hz, prev_pos, &mut vel);
+                        if est.push(u, &vel).is_ok() && est.periods_done() > 0 {
                             frf_so_far = est.estimate().ok().map(Arc::new);
                         }
                     }
@@ -159,11 +178,7 @@ pub fn spawn_relay(
                         .map_or(0, |a| a.load(Ordering::Relaxed));
                     let ev = SweepEvent::Period {
                         index: block,
-                        samples: SampleBlock {
-                            first_sample: sent,
-                            torque_cmd_nm: u,
-                            position_rad: p,
-                        },
+                        samples,
                         frf_so_far,
                         elapsed_s: to as f64 / plan.sample_rate_hz,
                         counters: Counters {
@@ -209,7 +224,13 @@ mod tests {
         };
         let h = spawn_relay(name, rows.clone(), plan, tx).unwrap();
         for k in 0..total {
-            rows.write(k, k as f64, position(k));
+            let row = flexid_sweep::Row {
+                torque_setpoint_nm: k as f64,
+                position_rad: position(k),
+                velocity_rad_s: 2.0 * k as f64,
+                torque_actual_nm: 3.0 * k as f64,
+            };
+            rows.write(k, &row);
             if (k + 1) % step == 0 {
                 rows.publish(k + 1, 0, 0, stamp(k + 1));
                 h.thread().unpark();
@@ -239,6 +260,8 @@ mod tests {
             assert_eq!(index, n);
             assert_eq!(samples.first_sample, n * period);
             assert_eq!(samples.torque_cmd_nm.len(), period);
+            assert_eq!(samples.velocity_rad_s.len(), period);
+            assert_eq!(samples.torque_actual_nm.len(), period);
             out.push((samples, counters));
         }
         out
@@ -293,13 +316,13 @@ pub struct RowsSink<'a>(pub &'a PeriodRows);
 
 impl flexid_sweep::RowSink for RowsSink<'_> {
     fn push(&mut self, k: usize, row: &flexid_sweep::Row) {
-        self.0.write(k, row.torque_setpoint_nm, row.position_rad);
+        self.0.write(k, row);
     }
 }
 
 impl PeriodRows {
-    /// Rows `..n` as (torque set-point, position) columns, once the sweep has ended.
-    pub fn columns(&self, n: usize) -> (Vec<f64>, Vec<f64>) {
+    /// Rows `..n`, once the sweep has ended.
+    pub fn columns(&self, n: usize) -> SampleBlock {
         self.read(0, n.min(self.torque_nm.len()))
     }
 }

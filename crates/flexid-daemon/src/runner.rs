@@ -46,6 +46,10 @@ pub(crate) fn run(mut job: Job) {
         s.reason = Some(m.reason.clone());
         s.ended_unix_s = Some(super::store::unix_now());
         s.samples = m.samples;
+        // rows a backend did not stream came with its final recording: count them too
+        if let Some(p) = super::store::whole_periods(m.samples, &job.sidecar) {
+            s.periods_done = s.periods_done.max(p);
+        }
         s.has_result = m.has_model;
     });
     if let Some(st) = job.hub.status() {

@@ -5,7 +5,7 @@
 //! | `running` | at the start (the status as JSON); removed when the sweep ends: a marker left behind means the daemon died during the sweep |
 //! | `request.json` | at the start |
 //! | `recording.json` | the sidecar: at the start, again at the end (with `ended_because`) |
-//! | `recording.csv` | appended after every period and fsynced: a crash loses at most the last period |
+//! | `recording.csv` | appended after every period and fsynced (the columns of `flexid sweep`: `time_s,torque_cmd_nm,position_rad,velocity_rad_s,torque_actual_nm`): a crash loses at most the last period |
 //! | `frf.csv` | after every period: `freq_hz,magnitude_db,phase_deg,coherence,std` |
 //! | `status.json` | at the end: outcome, reason, times |
 //! | `result.json` | at the end: the analysis as `flexid identify --json` writes it |
@@ -134,11 +134,22 @@ pub fn valid_sweep_id(id: &str) -> bool {
             .all(|b| b.is_ascii_alphanumeric() || b == b'-' || b == b'_')
 }
 
+/// The whole excitation periods (transient included) in the first `samples` rows of a
+/// recording described by `sidecar`; `None` when its excitation is not periodic.
+pub fn whole_periods(samples: usize, sidecar: &Sidecar) -> Option<usize> {
+    let n = sidecar.excitation.as_ref()?.period_samples;
+    (n > 0).then(|| samples / n)
+}
+
 /// The store under `data_dir`.
 #[derive(Debug, Clone)]
 pub struct Store {
     root: PathBuf,
 }
+
+/// The header of `recording.csv`: the columns `flexid sweep` writes.
+pub const RECORDING_HEADER: &str =
+    "time_s,torque_cmd_nm,position_rad,velocity_rad_s,torque_actual_nm\n";
 
 /// Files of one sweep directory.
 pub const RUNNING: &str = "running";
@@ -244,6 +255,10 @@ impl Store {
             if let Ok(mut sc) = serde_json::from_str::<Sidecar>(&text) {
                 sc.ended_because = Some("interrupted: the daemon stopped during the sweep".into());
                 write_json(&side, &sc)?;
+                // the marker holds the status of the start: count what is on disk
+                if let Some(p) = whole_periods(samples, &sc) {
+                    st.periods_done = p;
+                }
             }
         }
         st.state = SweepState::Interrupted;
@@ -285,7 +300,7 @@ impl Store {
             .write(true)
             .open(&csv_path)
             .map_err(io_err(&csv_path))?;
-        csv.write_all(b"time_s,torque_cmd_nm,position_rad\n")
+        csv.write_all(RECORDING_HEADER.as_bytes())
             .and_then(|_| csv.sync_all())
             .map_err(io_err(&csv_path))?;
         sync_dir(&dir)?;
@@ -307,19 +322,31 @@ impl SweepFiles {
     }
 
     /// Append one period's samples to `recording.csv` and fsync (round-trip precision).
+    /// A block whose columns differ in length is refused (nothing written).
     pub fn append(&mut self, block: &SampleBlock, sample_rate_hz: f64) -> Result<(), StoreError> {
         use std::fmt::Write as _;
-        let mut s = String::with_capacity(block.torque_cmd_nm.len() * 72);
-        for (i, (u, p)) in block
-            .torque_cmd_nm
-            .iter()
-            .zip(&block.position_rad)
-            .enumerate()
-        {
-            let t = (block.first_sample + i) as f64 / sample_rate_hz;
-            let _ = writeln!(s, "{t:e},{u:e},{p:e}");
-        }
         let path = self.dir.join(RECORDING_CSV);
+        let n = block.torque_cmd_nm.len();
+        let lens = [
+            block.position_rad.len(),
+            block.velocity_rad_s.len(),
+            block.torque_actual_nm.len(),
+        ];
+        if lens.iter().any(|&l| l != n) {
+            return Err(StoreError::Corrupt {
+                path,
+                message: format!(
+                    "a block of {n} set-points with {lens:?} positions, velocities, torques"
+                ),
+            });
+        }
+        let mut s = String::with_capacity(n * 120);
+        for i in 0..n {
+            let t = (block.first_sample + i) as f64 / sample_rate_hz;
+            let (u, p) = (block.torque_cmd_nm[i], block.position_rad[i]);
+            let (v, a) = (block.velocity_rad_s[i], block.torque_actual_nm[i]);
+            let _ = writeln!(s, "{t:e},{u:e},{p:e},{v:e},{a:e}");
+        }
         self.csv
             .write_all(s.as_bytes())
             .and_then(|_| self.csv.sync_data())
@@ -427,6 +454,120 @@ mod tests {
         assert!(valid_sweep_id(&id), "{id}");
         assert_eq!(id.len(), "20261122T201810Z-3fa2c1".len(), "{id}");
         assert!(!valid_sweep_id("../etc"));
+    }
+
+    /// Issue 16, item 2: a sweep the daemon did not live to finish is recovered with the
+    /// whole periods on disk counted, not the 0 of the marker written at its start.
+    #[test]
+    fn a_recovered_sweep_counts_the_whole_periods_on_disk() {
+        let d = tempfile::tempdir().unwrap();
+        let store = Store::open(d.path()).unwrap();
+        let request: SweepRequest = serde_json::from_str(
+            r#"{"excitation":"multisine","band_hz":[2,300],"amplitude_nm":0.5,"periods":4,"duration_s":5}"#,
+        )
+        .unwrap();
+        let status = SweepStatus {
+            id: "20261126T180000Z-000001".into(),
+            axis: "a1".into(),
+            state: SweepState::Running,
+            reason: None,
+            started_unix_s: 0.0,
+            ended_unix_s: None,
+            periods_done: 0,
+            samples: 0,
+            request,
+            has_result: false,
+            level: None,
+            has_diagnosis: false,
+        };
+        let sidecar: Sidecar = serde_json::from_str(
+            r#"{"sample_rate_hz": 100.0, "excitation": {"kind": "multisine", "period_samples": 10,
+                "periods": 4, "transient_periods": 1, "excited_lines": [1, 2]}}"#,
+        )
+        .unwrap();
+        let mut files = store.begin(&status, &sidecar).unwrap();
+        for first in [0, 10, 20] {
+            let block = SampleBlock {
+                first_sample: first,
+                torque_cmd_nm: vec![0.1; 10],
+                position_rad: vec![0.2; 10],
+                velocity_rad_s: vec![0.3; 10],
+                torque_actual_nm: vec![0.4; 10],
+            };
+            files.append(&block, 100.0).unwrap();
+        }
+        drop(files); // the daemon dies: the marker stays
+        let got = store.recover();
+        assert_eq!(got.len(), 1);
+        assert_eq!(got[0].state, SweepState::Interrupted);
+        assert_eq!(got[0].samples, 30);
+        assert_eq!(got[0].periods_done, 3, "whole periods on disk");
+        let on_disk = read_status(&store.dir("a1", &status.id).join(STATUS)).unwrap();
+        assert_eq!(on_disk.periods_done, 3);
+    }
+
+    /// Issue 16, item 3: the daemon's `recording.csv` has the columns `flexid sweep` writes
+    /// (the sweep loop's rows: set-point, position, velocity, torque actual).
+    #[test]
+    fn the_recording_has_the_columns_of_the_command_line() {
+        use flexid_sweep::{RecordedRows, Row, RowSink};
+        let mut rows = RecordedRows::with_capacity(1);
+        rows.push(
+            0,
+            &Row {
+                torque_setpoint_nm: 0.1,
+                position_rad: 0.2,
+                velocity_rad_s: 0.3,
+                torque_actual_nm: 0.4,
+            },
+        );
+        let cli = rows.into_recording(100.0, Sidecar::default());
+        let mut text = Vec::new();
+        flexid_core::recording::write_csv(&mut text, &cli).unwrap();
+        let text = String::from_utf8(text).unwrap();
+        let cli_header = text.lines().find(|l| !l.starts_with('#')).unwrap();
+
+        let d = tempfile::tempdir().unwrap();
+        let store = Store::open(d.path()).unwrap();
+        let request: SweepRequest = serde_json::from_str(
+            r#"{"excitation":"multisine","band_hz":[2,300],"amplitude_nm":0.5,"periods":4,"duration_s":5}"#,
+        )
+        .unwrap();
+        let status = SweepStatus {
+            id: "20261126T180000Z-000002".into(),
+            axis: "a1".into(),
+            state: SweepState::Running,
+            reason: None,
+            started_unix_s: 0.0,
+            ended_unix_s: None,
+            periods_done: 0,
+            samples: 0,
+            request,
+            has_result: false,
+            level: None,
+            has_diagnosis: false,
+        };
+        let mut files = store.begin(&status, &Sidecar::default()).unwrap();
+        let block = SampleBlock {
+            first_sample: 0,
+            torque_cmd_nm: vec![0.1; 3],
+            position_rad: vec![0.2; 3],
+            velocity_rad_s: vec![0.3; 3],
+            torque_actual_nm: vec![0.4; 3],
+        };
+        files.append(&block, 100.0).unwrap();
+        let daemon = fs::read_to_string(files.dir().join(RECORDING_CSV)).unwrap();
+        assert_eq!(daemon.lines().next().unwrap(), cli_header);
+        assert!(daemon.lines().skip(1).all(|l| l.split(',').count() == 5));
+        let rec = flexid_files::recording::read_recording(files.dir().join(RECORDING_CSV)).unwrap();
+        assert_eq!(rec.velocity_rad_s, Some(vec![0.3; 3]));
+        assert_eq!(rec.torque_actual_nm, Some(vec![0.4; 3]));
+        // a block short of a column is refused, not written half
+        let short = SampleBlock {
+            velocity_rad_s: Vec::new(),
+            ..block
+        };
+        assert!(files.append(&short, 100.0).is_err());
     }
 
     #[test]

@@ -81,7 +81,9 @@ impl StopReason {
                 | MasterError::Disabled { .. }
                 | MasterError::NmtStateChanged { .. } => StopReason::DriveFault(text),
                 MasterError::TpdoLost { .. } => StopReason::FeedbackLost(text),
-                MasterError::Bus { .. } => StopReason::BusError(text),
+                MasterError::Bus { .. } | MasterError::ErrorFrameBurst { .. } => {
+                    StopReason::BusError(text)
+                }
                 _ => StopReason::DriveError(text),
             };
         }
@@ -455,6 +457,11 @@ pub fn run_sweep_into<D: CyclicDrive>(
     let mut ramp_cycles = 0;
     let mut ramp_error = None;
     if !reason.drive_failed() {
+        if plan.pacing == Pacing::Realtime {
+            // a loop left early (speed limit, stop) has not waited out its last slot:
+            // the ramp's first SYNC comes a period after the last one all the same
+            schedule.wait();
+        }
         let steps = plan.ramp_cycles.max(1);
         for i in 1..=steps {
             let t = last_torque * (1.0 - i as f64 / steps as f64);

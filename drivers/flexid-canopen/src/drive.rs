@@ -52,6 +52,8 @@ pub struct Counters {
     /// Frames for this exchange that could not be decoded (short PDO, EMCY not 8
     /// bytes, bad heartbeat), ignored.
     pub malformed: u64,
+    /// CAN error frames received and tolerated (the error-frame policy).
+    pub bus_errors: u64,
 }
 
 /// A drive in cyclic synchronous torque mode, enabled. Fieldbus-independent.

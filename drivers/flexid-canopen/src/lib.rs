@@ -33,7 +33,10 @@ pub mod scaling;
 pub mod sdo;
 
 pub use drive::{Counters, CyclicDrive, Feedback};
-pub use master::{bring_up, Configured, Drive, Enabled, MasterConfig, MasterError, PreOperational};
+pub use master::{
+    bring_up, Configured, Drive, Enabled, ErrorFramePolicy, MasterConfig, MasterError,
+    PreOperational,
+};
 pub use profile::{Identity, Profile, ProfileError, ProfileSet};
 pub use scaling::Scaling;
 pub use sdo::{Sdo, SdoError};

@@ -14,14 +14,55 @@
 //! | Fault reaction active | `0x000F` |
 //! | Fault | `0x0008` |
 //!
-//! Other statusword bits the drive sets: bit 11 "internal limit active" while the torque
-//! set-point is clamped. Bits 4 (voltage enabled), 7 (warning), 9 (remote) and 10
-//! (target reached) stay 0.
+//! Other statusword bits the drive sets ([`statusword`]):
+//!
+//! * bit 4 "voltage enabled": the DC link of the simulated power stage is always charged,
+//!   so the bit shows the controlword's voltage command: set from Ready to switch on
+//!   ("shutdown" enables the voltage) through Operation enabled and Quick stop active;
+//!   clear in Switch on disabled (after "disable voltage") and in Fault;
+//! * bit 9 "remote": the controlword is processed; the bus is this drive's only control,
+//!   so always set;
+//! * bit 11 "internal limit active" while the torque set-point is clamped;
+//! * bit 12, operation mode specific: in the cyclic synchronous modes (CST, CSV, CSP) "target
+//!   torque / velocity / position ignored" = 0, used as the input of the control loop =
+//!   1: set in Operation enabled only (PT: reserved, 0).
+//!
+//! Bits 7 (warning), 10 (target reached), 13 (following error) stay 0.
 
 /// Controlword bit 7: fault reset (acts on its rising edge).
 pub const CW_FAULT_RESET: u16 = 0x0080;
+/// Statusword bit 4: voltage enabled.
+pub const SW_VOLTAGE_ENABLED: u16 = 0x0010;
+/// Statusword bit 9: remote (the controlword is processed).
+pub const SW_REMOTE: u16 = 0x0200;
 /// Statusword bit 11: internal limit active.
 pub const SW_INTERNAL_LIMIT: u16 = 0x0800;
+/// Statusword bit 12 in CST/CSV/CSP: the target is followed (not ignored).
+pub const SW_TARGET_FOLLOWED: u16 = 0x1000;
+
+/// The whole statusword of `state` in mode of operation `mode`, with the torque clamp
+/// acting (`limited`).
+pub fn statusword(state: State, mode: i8, limited: bool) -> u16 {
+    let mut sw = state.status_bits() | SW_REMOTE;
+    if matches!(
+        state,
+        State::ReadyToSwitchOn
+            | State::SwitchedOn
+            | State::OperationEnabled
+            | State::QuickStopActive
+    ) {
+        sw |= SW_VOLTAGE_ENABLED;
+    }
+    if state == State::OperationEnabled {
+        if limited {
+            sw |= SW_INTERNAL_LIMIT;
+        }
+        if matches!(mode, mode::CST | mode::CSV | mode::CSP) {
+            sw |= SW_TARGET_FOLLOWED;
+        }
+    }
+    sw
+}
 
 /// Mode of operation (0x6060 / 0x6061 values).
 pub mod mode {
@@ -138,6 +179,23 @@ impl DeviceControl {
     /// A fault: transitions 13 and 14 (the reaction, torque off, is immediate).
     pub fn fault(&mut self) {
         self.state = State::Fault;
+    }
+
+    /// Disable voltage from any state but Fault (0x6007 = 2): transitions 7, 9, 10, 12.
+    pub fn disable_voltage(&mut self) {
+        if !matches!(self.state, State::Fault | State::FaultReactionActive) {
+            self.state = State::SwitchOnDisabled;
+        }
+    }
+
+    /// Quick stop (0x6007 = 3): transition 11 from Operation enabled, else as Disable
+    /// voltage.
+    pub fn quick_stop(&mut self) {
+        match self.state {
+            State::OperationEnabled => self.state = State::QuickStopActive,
+            State::QuickStopActive => {}
+            _ => self.disable_voltage(),
+        }
     }
 
     /// The quick-stop ramp has reached zero torque: quick stop option code 2, transition 12.

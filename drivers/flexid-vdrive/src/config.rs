@@ -16,6 +16,8 @@
 //! i2t_time_constant_s = 1.0
 //! velocity_loop_hz = 30.0            # CSV/CSP: velocity PI bandwidth (gains from the total inertia)
 //! position_loop_hz = 5.0             # CSP: position P bandwidth
+//! sync_loss_cycles = 3               # no SYNC for this many 0x1006 periods in Operation
+//!                                    # enabled: fault, torque off, EMCY 0x8700 (0 = off)
 //! ```
 
 use std::path::Path;
@@ -52,6 +54,7 @@ pub struct DriveSection {
     pub i2t_time_constant_s: f64,
     pub velocity_loop_hz: f64,
     pub position_loop_hz: f64,
+    pub sync_loss_cycles: u16,
 }
 
 impl Default for DriveSection {
@@ -70,6 +73,7 @@ impl Default for DriveSection {
             i2t_time_constant_s: 1.0,
             velocity_loop_hz: 30.0,
             position_loop_hz: 5.0,
+            sync_loss_cycles: 3,
         }
     }
 }
@@ -101,6 +105,9 @@ pub struct DriveConfig {
     pub position_kp: f64,
     /// Lock-step or real time.
     pub clock: ClockMode,
+    /// SYNC-loss supervision: communication cycle periods (0x1006) without SYNC in
+    /// Operation enabled that fault the drive (0: off).
+    pub sync_loss_cycles: u16,
 }
 
 impl DriveConfig {
@@ -129,6 +136,7 @@ impl DriveConfig {
             velocity_ki: total_inertia_kgm2 * wv * wv / 4.0,
             position_kp: 2.0 * std::f64::consts::PI * d.position_loop_hz,
             clock: ClockMode::LockStep,
+            sync_loss_cycles: d.sync_loss_cycles,
         }
     }
 }

@@ -24,6 +24,7 @@ use crate::limits::{FaultKind, Limiter};
 use crate::od::{self, idx, Od, OdDefaults};
 use crate::physics::{AxisSample, Physics};
 use crate::slave::{Slave, SlaveError, SlaveEvent};
+use crate::sync_watch::{SyncWatch, LOCKSTEP_FLOOR};
 
 /// Most frames one call can produce.
 pub const MAX_OUTPUTS: usize = 8;
@@ -106,6 +107,14 @@ pub struct VirtualDrive<P: Physics> {
     physics: P,
     producer: Producer,
     consumer: Consumer,
+    sync_watch: SyncWatch,
+    /// Whether the master has written 0x1006 since the last reset: only a period the
+    /// master declared is supervised (the default is the plant file's, not the master's).
+    sync_period_declared: bool,
+    /// An RPDO of the wrong length was reported (EMCY once until a right one comes).
+    pdo_length_error: bool,
+    /// A SYNC of the wrong length was reported (EMCY once until a right one comes).
+    sync_length_error: bool,
     fault: Option<FaultKind>,
     /// Torque held over the current cycle [N m].
     applied_nm: f64,
@@ -137,6 +146,7 @@ impl<P: Physics> VirtualDrive<P> {
         slave.set_cycle_adjustable(physics.cycle_adjustable());
         let last = physics.sample();
         let base_cycle_hz = cfg.cycle_hz;
+        let sync_watch = SyncWatch::new(cfg.sync_loss_cycles);
         Ok(Self {
             ts: 1.0 / cfg.cycle_hz,
             inc_per_rad: f64::from(cfg.encoder_increments_per_rev) / (2.0 * std::f64::consts::PI),
@@ -147,6 +157,10 @@ impl<P: Physics> VirtualDrive<P> {
             physics,
             producer: Producer::default(),
             consumer: Consumer::default(),
+            sync_watch,
+            sync_period_declared: false,
+            pdo_length_error: false,
+            sync_length_error: false,
             fault: None,
             applied_nm: 0.0,
             limited: false,
@@ -190,13 +204,21 @@ impl<P: Physics> VirtualDrive<P> {
             return out;
         }
         if cob == self.slave.sync_cob_id() {
+            // no 0x1019 (counter overflow 0): a SYNC carries no data (CiA 301)
+            if data.is_empty() {
+                self.sync_length_error = false;
+            } else if !self.sync_length_error {
+                self.sync_length_error = true;
+                self.warn(crate::slave::EMCY_SYNC_LENGTH, &mut out);
+            }
             if data.len() <= 1 {
-                self.sync_into(now, &mut out);
+                self.sync_into(now, &mut out); // a counter byte: still a SYNC
             } else {
                 self.stats.ignored += 1;
             }
             return out;
         }
+        let nmt_before = self.slave.nmt();
         let (resp, ev) = self.slave.on_frame(cob, data);
         out.push(resp);
         match ev {
@@ -211,7 +233,10 @@ impl<P: Physics> VirtualDrive<P> {
                 }
                 if !communication_only {
                     self.reset_application();
-                } else if let Some(k) = self.fault {
+                    self.boot(now, &mut out);
+                    return out;
+                }
+                if let Some(k) = self.fault {
                     // The fault outlives a communication reset: keep 0x1001 showing it.
                     let reg = k.error_register().0 | canopen_rs::ErrorRegister::GENERIC;
                     od::set(
@@ -221,16 +246,30 @@ impl<P: Physics> VirtualDrive<P> {
                     );
                 }
                 self.boot(now, &mut out);
+                // reset communication: the master's connection is gone
+                self.abort_connection(&mut out);
             }
             SlaveEvent::Nmt(cmd) => {
                 tracing::debug!(cmd, "NMT");
-                if cmd == 0x02 && self.dc.state().torque_enabled() {
-                    // NMT stop: no more set-points arrive; disable voltage.
-                    self.dc.on_controlword(0x0000, true);
-                    self.publish_status();
+                // Stopped, or Operational left: no more set-points arrive (CiA 402 abort
+                // connection).
+                if cmd == 0x02 || (cmd == 0x80 && nmt_before == NmtState::Operational) {
+                    self.abort_connection(&mut out);
                 }
             }
-            SlaveEvent::Rpdo => self.on_controlword(&mut out),
+            SlaveEvent::Rpdo => {
+                self.pdo_length_error = false;
+                self.on_controlword(&mut out);
+            }
+            SlaveEvent::RpdoLength { code, processed } => {
+                if !self.pdo_length_error {
+                    self.pdo_length_error = true;
+                    self.warn(code, &mut out);
+                }
+                if processed {
+                    self.on_controlword(&mut out);
+                }
+            }
             SlaveEvent::Written(a) => self.on_written(a, now, &mut out),
         }
         out
@@ -243,11 +282,19 @@ impl<P: Physics> VirtualDrive<P> {
         out
     }
 
-    /// Timers at `now`: heartbeat production, heartbeat consumer supervision.
+    /// Timers at `now`: heartbeat production, heartbeat consumer and SYNC-loss
+    /// supervision.
     pub fn tick(&mut self, now: Duration) -> Outputs {
         let mut out = Outputs::default();
         if self.producer.due(now) {
             out.push(self.slave.heartbeat());
+        }
+        if self.fault.is_none()
+            && self.dc.state().torque_enabled()
+            && self.sync_watch.overdue(now, self.sync_window())
+        {
+            tracing::warn!(cycles = self.sync_watch.cycles(), "SYNC lost: torque off");
+            self.raise(FaultKind::SyncLost, &mut out);
         }
         if self.fault.is_none()
             && self.dc.state() == State::OperationEnabled
@@ -265,10 +312,30 @@ impl<P: Physics> VirtualDrive<P> {
         // would leave a deadline in the past and a runner spinning on it).
         let supervised = self.fault.is_none() && self.dc.state() == State::OperationEnabled;
         let consumer = self.consumer.deadline().filter(|_| supervised);
-        match (self.producer.next_due(), consumer) {
-            (Some(a), Some(b)) => Some(a.min(b)),
-            (a, b) => a.or(b),
+        let sync = self
+            .sync_watch
+            .deadline(self.sync_window())
+            .filter(|_| self.fault.is_none() && self.dc.state().torque_enabled());
+        [self.producer.next_due(), consumer, sync]
+            .into_iter()
+            .flatten()
+            .min()
+    }
+
+    /// The SYNC-loss window: `sync_loss_cycles` periods of 0x1006 as the master wrote it
+    /// (`None`: off, or the master never declared its period), at least
+    /// [`LOCKSTEP_FLOOR`] in lock-step.
+    fn sync_window(&self) -> Option<Duration> {
+        if !self.sync_period_declared {
+            return None;
         }
+        let us = od::get_u32(self.slave.od(), idx::CYCLE_PERIOD, 0).unwrap_or(0);
+        let floor = match self.cfg.clock {
+            ClockMode::LockStep => LOCKSTEP_FLOOR,
+            ClockMode::RealTime => Duration::ZERO,
+        };
+        self.sync_watch
+            .window(Duration::from_micros(u64::from(us)), floor)
     }
 
     /// The CiA 402 state.
@@ -318,6 +385,7 @@ impl<P: Physics> VirtualDrive<P> {
 
     fn boot(&mut self, now: Duration, out: &mut Outputs) {
         out.push(self.slave.boot());
+        self.sync_period_declared = false; // 0x1006 is back at its default
         let hb = od::get_u32(self.slave.od(), idx::HB_PRODUCER, 0).unwrap_or(0) as u16;
         self.producer.restart(hb, now);
         self.consumer
@@ -346,6 +414,7 @@ impl<P: Physics> VirtualDrive<P> {
             idx::MODES => self.publish_status(),
             idx::CYCLE_PERIOD => {
                 let us = od::get_u32(self.slave.od(), idx::CYCLE_PERIOD, 0).unwrap_or(0);
+                self.sync_period_declared = us != 0;
                 if us != 0 {
                     let hz = 1e6 / f64::from(us);
                     if (hz - self.cfg.cycle_hz).abs() > 1e-9 * hz && !self.change_cycle(hz) {
@@ -390,15 +459,53 @@ impl<P: Physics> VirtualDrive<P> {
         if before == State::Fault && after != State::Fault {
             self.fault = None;
             od::set(self.slave.od_mut(), idx::ERROR_CODE, Value::Unsigned16(0));
-            out.push(self.slave.clear_errors());
+            out.push(self.slave.error_reset());
         }
         if after == State::OperationEnabled && before != State::OperationEnabled {
             self.velocity_integral = 0.0;
+            self.sync_watch.disarm(); // supervised from the next SYNC on
         }
         if before != after {
             tracing::debug!(?before, ?after, cw, "CiA 402");
         }
         self.publish_status();
+    }
+
+    /// The connection to the master is aborted (NMT Operational left, reset
+    /// communication): with the power stage on, 0x6007 says what happens.
+    fn abort_connection(&mut self, out: &mut Outputs) {
+        use od::abort_connection as code;
+        if !self.dc.state().torque_enabled() {
+            return;
+        }
+        let option = od::get_i64(self.slave.od(), idx::ABORT_CONNECTION)
+            .unwrap_or(i64::from(code::DISABLE_VOLTAGE)) as i16;
+        tracing::warn!(option, "connection aborted while the power stage is on");
+        match option {
+            code::NO_ACTION => {}
+            code::FAULT => self.raise(FaultKind::ConnectionAborted, out),
+            code::QUICK_STOP => {
+                self.dc.quick_stop();
+                self.publish_status();
+            }
+            _ => {
+                self.dc.disable_voltage();
+                self.applied_nm = 0.0;
+                self.limited = false;
+                self.publish_status();
+            }
+        }
+    }
+
+    /// A communication EMCY that is no fault (wrong PDO or SYNC length): 0x1001 and
+    /// 0x1003 record it; not sent in NMT stopped (CiA 301).
+    fn warn(&mut self, code: u16, out: &mut Outputs) {
+        tracing::warn!(code, "EMCY");
+        let reg = canopen_rs::ErrorRegister(canopen_rs::ErrorRegister::COMMUNICATION);
+        let emcy = self.slave.emergency(code, reg);
+        if !matches!(self.slave.nmt(), NmtState::Stopped | NmtState::Initialising) {
+            out.push(emcy);
+        }
     }
 
     fn raise(&mut self, kind: FaultKind, out: &mut Outputs) {
@@ -408,21 +515,51 @@ impl<P: Physics> VirtualDrive<P> {
         tracing::warn!(?kind, code = kind.emcy_code(), "fault");
         self.fault = Some(kind);
         self.dc.fault();
+        // the reaction is immediate: no torque from now on, SYNC or not
+        self.applied_nm = 0.0;
         self.limited = false;
         od::set(
             self.slave.od_mut(),
             idx::ERROR_CODE,
             Value::Unsigned16(kind.emcy_code()),
         );
-        out.push(
-            self.slave
-                .emergency(kind.emcy_code(), kind.error_register()),
-        );
+        let emcy = self
+            .slave
+            .emergency(kind.emcy_code(), kind.error_register());
+        // CiA 301: no EMCY in NMT stopped (0x1001 and 0x1003 still record it)
+        if self.slave.nmt() != NmtState::Stopped {
+            out.push(emcy);
+        }
         self.publish_status();
+        if kind.is_communication() {
+            self.error_behaviour();
+        }
+    }
+
+    /// CiA 301 0x1029:1: the NMT state after a communication error.
+    fn error_behaviour(&mut self) {
+        use od::error_behaviour as eb;
+        let b = od::get_u32(self.slave.od(), idx::ERROR_BEHAVIOUR, 1).unwrap_or(0) as u8;
+        match b {
+            eb::PRE_OPERATIONAL if self.slave.nmt() == NmtState::Operational => {
+                tracing::warn!("communication error: NMT pre-operational (0x1029:1 = 0)");
+                self.slave.enter_nmt(0x80);
+            }
+            eb::STOPPED => {
+                tracing::warn!("communication error: NMT stopped (0x1029:1 = 2)");
+                self.slave.enter_nmt(0x02);
+            }
+            _ => {}
+        }
     }
 
     fn sync_into(&mut self, now: Duration, out: &mut Outputs) {
         self.stats.syncs += 1;
+        if self.dc.state().torque_enabled() {
+            self.sync_watch.seen(now);
+        } else {
+            self.sync_watch.disarm();
+        }
         if self.cfg.clock == ClockMode::RealTime {
             self.catch_up(now);
         }
@@ -550,11 +687,8 @@ impl<P: Physics> VirtualDrive<P> {
 
     fn publish_status(&mut self) {
         let state = self.dc.state();
-        let mut sw = state.status_bits();
-        if self.limited && state == State::OperationEnabled {
-            sw |= cia402::SW_INTERNAL_LIMIT;
-        }
         let mode = od::get_i64(self.slave.od(), idx::MODES).unwrap_or(0) as i8;
+        let sw = cia402::statusword(state, mode, self.limited);
         let od = self.slave.od_mut();
         od::set(od, idx::STATUSWORD, Value::Unsigned16(sw));
         od::set(od, idx::MODES_DISPLAY, Value::Integer8(mode));

@@ -8,6 +8,7 @@
 //! * [`cia402`]: the CiA 402 device state machine and statusword.
 //! * [`limits`]: torque clamp, overspeed and i²t faults, EMCY codes.
 //! * [`heartbeat`]: heartbeat producer and consumer timers.
+//! * [`sync_watch`]: SYNC-loss supervision.
 //! * [`drive`]: the sans-I/O core [`VirtualDrive`] (`on_frame`, `on_sync`, `tick`, time
 //!   injected).
 //! * [`runner`]: the blocking [`Runner`] over any `flexid_can::CanBus`.
@@ -22,6 +23,7 @@ pub mod od;
 pub mod physics;
 pub mod runner;
 pub mod slave;
+pub mod sync_watch;
 
 pub use cia402::State;
 pub use config::{ClockMode, ConfigError, DriveConfig, DrivePlant, DriveSection};

@@ -7,6 +7,8 @@
 //!   `x' = ((T/T_cont)^2 - x) / tau`; `x > 1` is a fault, EMCY 0x2310 (continuous over
 //!   current).
 //! * Heartbeat consumer ([`crate::heartbeat`]): EMCY 0x8130.
+//! * SYNC loss ([`crate::sync_watch`]): EMCY 0x8700.
+//! * Connection aborted with 0x6007 = 1: EMCY 0x8100.
 
 use canopen_rs::ErrorRegister;
 
@@ -19,15 +21,30 @@ pub enum FaultKind {
     ContinuousOvercurrent,
     /// The master's heartbeat was not seen within the consumer time.
     HeartbeatLost,
+    /// No SYNC for the configured number of cycles in Operation enabled
+    /// ([`crate::sync_watch`]).
+    SyncLost,
+    /// The connection to the master was aborted (NMT Operational left, reset
+    /// communication) with 0x6007 = 1 (fault signal).
+    ConnectionAborted,
 }
 
 impl FaultKind {
+    /// Whether it is a communication error (CiA 301 0x1029:1 applies).
+    pub const fn is_communication(self) -> bool {
+        matches!(self, FaultKind::HeartbeatLost | FaultKind::SyncLost)
+    }
+
     /// The EMCY error code (also 0x603F error code).
     pub const fn emcy_code(self) -> u16 {
         match self {
             FaultKind::Overspeed => 0x8400,
             FaultKind::ContinuousOvercurrent => 0x2310,
             FaultKind::HeartbeatLost => 0x8130,
+            // CiA 301 has no code for a missing SYNC; CiA 402 lists 0x8700 "sync
+            // controller" in the monitoring class.
+            FaultKind::SyncLost => 0x8700,
+            FaultKind::ConnectionAborted => 0x8100,
         }
     }
 
@@ -36,7 +53,9 @@ impl FaultKind {
         ErrorRegister(match self {
             FaultKind::Overspeed => ErrorRegister::DEVICE_PROFILE,
             FaultKind::ContinuousOvercurrent => ErrorRegister::CURRENT,
-            FaultKind::HeartbeatLost => ErrorRegister::COMMUNICATION,
+            FaultKind::HeartbeatLost | FaultKind::SyncLost | FaultKind::ConnectionAborted => {
+                ErrorRegister::COMMUNICATION
+            }
         })
     }
 }
@@ -109,7 +128,7 @@ impl Limiter {
         match kind {
             FaultKind::Overspeed => self.check_speed(velocity_rad_s).is_none(),
             FaultKind::ContinuousOvercurrent => self.i2t <= 1.0,
-            FaultKind::HeartbeatLost => true,
+            FaultKind::HeartbeatLost | FaultKind::SyncLost | FaultKind::ConnectionAborted => true,
         }
     }
 

@@ -35,10 +35,12 @@ pub mod idx {
     pub const HB_CONSUMER: u16 = 0x1016;
     pub const HB_PRODUCER: u16 = 0x1017;
     pub const IDENTITY: u16 = 0x1018;
+    pub const ERROR_BEHAVIOUR: u16 = 0x1029;
     pub const RPDO_COMM: u16 = 0x1400;
     pub const RPDO_MAP: u16 = 0x1600;
     pub const TPDO_COMM: u16 = 0x1800;
     pub const TPDO_MAP: u16 = 0x1A00;
+    pub const ABORT_CONNECTION: u16 = 0x6007;
     pub const ERROR_CODE: u16 = 0x603F;
     pub const CONTROLWORD: u16 = 0x6040;
     pub const STATUSWORD: u16 = 0x6041;
@@ -55,10 +57,42 @@ pub mod idx {
     pub const SUPPORTED_MODES: u16 = 0x6502;
 }
 
+/// 0x6007 abort connection option codes (CiA 402): what the drive does when the
+/// connection to its master is aborted (NMT Operational left, reset communication) while
+/// the power stage is on.
+pub mod abort_connection {
+    /// No action.
+    pub const NO_ACTION: i16 = 0;
+    /// Fault signal: Fault, EMCY 0x8100.
+    pub const FAULT: i16 = 1;
+    /// Disable voltage command (the default).
+    pub const DISABLE_VOLTAGE: i16 = 2;
+    /// Quick stop command.
+    pub const QUICK_STOP: i16 = 3;
+}
+
+/// 0x1029:1 error behaviour on a communication error (CiA 301).
+pub mod error_behaviour {
+    /// Change to NMT pre-operational if operational.
+    pub const PRE_OPERATIONAL: u8 = 0;
+    /// No change of the NMT state (the default: the TPDOs keep flowing, so the master
+    /// reads the Fault statusword; the torque is off through the fault either way).
+    pub const NO_CHANGE: u8 = 1;
+    /// Change to NMT stopped.
+    pub const STOPPED: u8 = 2;
+}
+
+/// Bit 30 of a TPDO COB-ID (CiA 301): no RTR allowed. Always set: the drive does not
+/// serve PDOs by remote request, as most CiA 402 drives today (CiA AN 802 advises against
+/// remote frames, CAN FD has none, and a synchronous TPDO already comes every SYNC).
+pub const TPDO_NO_RTR: u32 = 0x4000_0000;
+
 /// Receive PDOs the drive has (RPDO1).
 pub const RPDOS: u16 = 1;
 /// Transmit PDOs the drive has (TPDO1, TPDO2).
 pub const TPDOS: u16 = 2;
+/// Entries of the pre-defined error field 0x1003.
+pub const ERROR_HISTORY: usize = 8;
 /// Mapping entries per PDO (canopen-rs's `MAX_PDO_MAPPING`).
 pub const MAX_MAPPED: u8 = 8;
 
@@ -137,8 +171,9 @@ pub fn build(d: &OdDefaults) -> Result<Od, OdError> {
         Entry::constant(Unsigned32(DEVICE_TYPE)),
     )?;
     put(idx::ERROR_REGISTER, 0, Entry::ro(Unsigned8(0)))?;
-    put(idx::ERROR_FIELD, 0, Entry::ro(Unsigned8(0)))?;
-    for sub in 1..=8 {
+    // sub 0 is writable: 0 clears the history (any other value is refused)
+    put(idx::ERROR_FIELD, 0, Entry::rw(Unsigned8(0)))?;
+    for sub in 1..=ERROR_HISTORY as u8 {
         put(idx::ERROR_FIELD, sub, Entry::ro(Unsigned32(0)))?;
     }
     put(idx::SYNC_COB_ID, 0, Entry::rw(Unsigned32(0x80)))?;
@@ -161,6 +196,12 @@ pub fn build(d: &OdDefaults) -> Result<Od, OdError> {
     put(idx::IDENTITY, 2, Entry::constant(Unsigned32(PRODUCT_CODE)))?;
     put(idx::IDENTITY, 3, Entry::constant(Unsigned32(REVISION)))?;
     put(idx::IDENTITY, 4, Entry::constant(Unsigned32(id)))?;
+    put(idx::ERROR_BEHAVIOUR, 0, Entry::constant(Unsigned8(1)))?;
+    put(
+        idx::ERROR_BEHAVIOUR,
+        1,
+        Entry::rw(Unsigned8(error_behaviour::NO_CHANGE)),
+    )?;
 
     let pdo = |base: u16,
                cob: u32,
@@ -185,12 +226,22 @@ pub fn build(d: &OdDefaults) -> Result<Od, OdError> {
     )?;
     pdo(
         idx::TPDO_COMM,
-        0x180 + id,
+        TPDO_NO_RTR | (0x180 + id),
         &[0x6041_0010, 0x6064_0020, 0x6077_0010],
         &mut put,
     )?;
-    pdo(idx::TPDO_COMM + 1, 0x280 + id, &[0x606C_0020], &mut put)?;
+    pdo(
+        idx::TPDO_COMM + 1,
+        TPDO_NO_RTR | (0x280 + id),
+        &[0x606C_0020],
+        &mut put,
+    )?;
 
+    put(
+        idx::ABORT_CONNECTION,
+        0,
+        Entry::rw(Integer16(abort_connection::DISABLE_VOLTAGE)),
+    )?;
     put(idx::ERROR_CODE, 0, Entry::ro(Unsigned16(0)))?;
     put(idx::CONTROLWORD, 0, Entry::rw(Unsigned16(0)))?;
     put(idx::STATUSWORD, 0, Entry::ro(Unsigned16(0)))?;

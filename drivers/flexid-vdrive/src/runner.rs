@@ -10,6 +10,9 @@ use crate::physics::Physics;
 
 /// Longest wait in `recv_timeout`, so that a stop request is seen promptly.
 pub const POLL: Duration = Duration::from_millis(20);
+/// Most queued frames handled before the timers are looked at (a flooded bus must not
+/// starve the heartbeat).
+pub const MAX_DRAIN: usize = 64;
 
 /// Errors of the runner.
 #[derive(Debug, thiserror::Error)]
@@ -73,6 +76,14 @@ impl<B: CanBus, P: Physics> Runner<B, P> {
     /// Serves the bus until `stop` is set (after [`Runner::power_on`]).
     pub fn serve(&mut self, stop: &AtomicBool) -> Result<(), RunError> {
         while !stop.load(Ordering::Relaxed) {
+            // Frames already queued first: a drive that was itself descheduled must see
+            // the SYNCs that did arrive (at their receive stamps) before its timers judge
+            // them missing.
+            for _ in 0..MAX_DRAIN {
+                if !self.receive(Duration::ZERO)? {
+                    break;
+                }
+            }
             let now = self.epoch.elapsed();
             let out = self.drive.tick(now);
             self.send(&out);
@@ -80,23 +91,30 @@ impl<B: CanBus, P: Physics> Runner<B, P> {
                 .drive
                 .next_deadline()
                 .map_or(POLL, |d| d.saturating_sub(now).min(POLL));
-            match self.bus.recv_timeout(wait) {
-                Ok(Some(r)) => {
-                    let at = r.timestamp.saturating_duration_since(self.epoch);
-                    let out = self.drive.on_frame(&r.frame, at);
-                    self.send(&out);
-                }
-                Ok(None) => {}
-                Err(e) if e.is_report() => tracing::warn!("{e}"),
-                Err(source) => {
-                    return Err(RunError::Bus {
-                        interface: self.bus.interface().to_string(),
-                        source,
-                    })
-                }
-            }
+            self.receive(wait)?;
         }
         Ok(())
+    }
+
+    /// Waits up to `wait` for one frame and hands it to the drive; whether one came.
+    fn receive(&mut self, wait: Duration) -> Result<bool, RunError> {
+        match self.bus.recv_timeout(wait) {
+            Ok(Some(r)) => {
+                let at = r.timestamp.saturating_duration_since(self.epoch);
+                let out = self.drive.on_frame(&r.frame, at);
+                self.send(&out);
+                Ok(true)
+            }
+            Ok(None) => Ok(false),
+            Err(e) if e.is_report() => {
+                tracing::warn!("{e}");
+                Ok(true)
+            }
+            Err(source) => Err(RunError::Bus {
+                interface: self.bus.interface().to_string(),
+                source,
+            }),
+        }
     }
 
     fn send(&mut self, out: &Outputs) {

@@ -57,7 +57,23 @@ pub enum SlaveEvent {
     Written(Address),
     /// RPDO1 was received while operational (its objects are written).
     Rpdo,
+    /// RPDO1 of the wrong length while operational (CiA 301): shorter than its mapping,
+    /// not processed (EMCY 0x8210); longer, processed from its mapped bytes (EMCY
+    /// 0x8220).
+    RpdoLength {
+        /// The EMCY code to report.
+        code: u16,
+        /// Whether the objects were written (then it is also an [`SlaveEvent::Rpdo`]).
+        processed: bool,
+    },
 }
+
+/// EMCY: PDO not processed due to length error (CiA 301).
+pub const EMCY_PDO_LENGTH: u16 = 0x8210;
+/// EMCY: PDO length exceeded (CiA 301).
+pub const EMCY_PDO_LENGTH_EXCEEDED: u16 = 0x8220;
+/// EMCY: unexpected SYNC data length (CiA 301).
+pub const EMCY_SYNC_LENGTH: u16 = 0x8240;
 
 /// The CiA 301 slave of the drive.
 #[derive(Debug)]
@@ -66,6 +82,10 @@ pub struct Slave {
     defaults: OdDefaults,
     sync_count: [u8; od::TPDOS as usize],
     cycle_adjustable: bool,
+    /// The pre-defined error field 0x1003, most recent first: kept here because
+    /// canopen-rs clears it with the error register, and a fault reset must not.
+    history: [u32; od::ERROR_HISTORY],
+    history_len: usize,
 }
 
 /// Errors of the slave layer.
@@ -93,6 +113,8 @@ impl Slave {
             defaults,
             sync_count: [0; od::TPDOS as usize],
             cycle_adjustable: false,
+            history: [0; od::ERROR_HISTORY],
+            history_len: 0,
         })
     }
 
@@ -120,6 +142,7 @@ impl Slave {
         fresh.cycle_adjustable = self.cycle_adjustable;
         if communication_only {
             for index in [
+                idx::ABORT_CONNECTION,
                 idx::CONTROLWORD,
                 idx::MODES,
                 idx::MODES_DISPLAY,
@@ -171,12 +194,49 @@ impl Slave {
         code: u16,
         register: canopen_rs::ErrorRegister,
     ) -> Option<CanFrame> {
-        can(self.node.raise_emergency(code, register, [0; 5]))
+        let frame = can(self.node.raise_emergency(code, register, [0; 5]));
+        self.history.copy_within(0..od::ERROR_HISTORY - 1, 1);
+        self.history[0] = u32::from(code);
+        self.history_len = (self.history_len + 1).min(od::ERROR_HISTORY);
+        self.mirror_history();
+        frame
     }
 
-    /// Clears the error register and history; the EMCY "error reset" frame to send.
-    pub fn clear_errors(&mut self) -> Option<CanFrame> {
-        can(self.node.clear_errors())
+    /// A fault reset: clears the error register (0x1001) and keeps the error history
+    /// (0x1003, CiA 301: only writing 0 to its sub-index 0 clears it); the EMCY "error
+    /// reset" frame to send.
+    pub fn error_reset(&mut self) -> Option<CanFrame> {
+        let frame = can(self.node.clear_errors());
+        self.mirror_history();
+        frame
+    }
+
+    /// The pre-defined error field (0x1003 sub 1..), most recent first.
+    pub fn error_history(&self) -> &[u32] {
+        &self.history[..self.history_len]
+    }
+
+    /// Writes the history into 0x1003 (sub 0: the count; unused entries 0).
+    fn mirror_history(&mut self) {
+        let od = self.node.od_mut();
+        let _ = od.set(
+            Address::new(idx::ERROR_FIELD, 0),
+            Value::Unsigned8(self.history_len as u8),
+        );
+        for (i, &e) in self.history.iter().enumerate() {
+            let v = if i < self.history_len { e } else { 0 };
+            let _ = od.set(
+                Address::new(idx::ERROR_FIELD, i as u8 + 1),
+                Value::Unsigned32(v),
+            );
+        }
+    }
+
+    /// Changes the NMT state from inside the device (0x1029 error behaviour): `command`
+    /// is an NMT command specifier (0x02 stop, 0x80 pre-operational).
+    pub fn enter_nmt(&mut self, command: u8) {
+        let id = self.defaults.node_id;
+        let _ = self.node.on_frame(0, &[command, id]);
     }
 
     /// The SYNC COB-ID (0x1005 bits 0..10).
@@ -235,7 +295,23 @@ impl Slave {
             }
             let resp = self.node.on_frame(cob, data).and_then(can);
             let ev = match self.node.take_written_object() {
+                Some(a) if a == Address::new(idx::ERROR_FIELD, 0) => {
+                    // 0 written to 0x1003:0 (the only value accepted): history cleared
+                    self.history_len = 0;
+                    self.mirror_history();
+                    SlaveEvent::Written(a)
+                }
                 Some(a) => {
+                    let tpdo_comm = idx::TPDO_COMM..idx::TPDO_COMM + od::TPDOS;
+                    if tpdo_comm.contains(&a.index) && a.subindex == 1 {
+                        // RTR is not served: bit 30 reads 1 whatever was written
+                        if let Some(v) = od::get_u32(self.od(), a.index, 1) {
+                            let _ = self
+                                .node
+                                .od_mut()
+                                .set(a, Value::Unsigned32(v | od::TPDO_NO_RTR));
+                        }
+                    }
                     if (0x1400..=0x1BFF).contains(&a.index) {
                         self.node.configure_pdos_from_od();
                         self.sync_count = [0; od::TPDOS as usize];
@@ -247,13 +323,38 @@ impl Slave {
             return (resp, ev);
         }
         let operational = self.node.state() == NmtState::Operational;
+        if operational && Some(cob) == self.rpdo_cob_id() {
+            let mapped = self.rpdo_length();
+            if data.len() < mapped {
+                let ev = SlaveEvent::RpdoLength {
+                    code: EMCY_PDO_LENGTH,
+                    processed: false,
+                };
+                return (None, ev);
+            }
+            let _ = self.node.on_frame(cob, &data[..mapped]);
+            let ev = if data.len() > mapped {
+                SlaveEvent::RpdoLength {
+                    code: EMCY_PDO_LENGTH_EXCEEDED,
+                    processed: true,
+                }
+            } else {
+                SlaveEvent::Rpdo
+            };
+            return (None, ev);
+        }
         let resp = self.node.on_frame(cob, data).and_then(can);
-        let ev = if operational && Some(cob) == self.rpdo_cob_id() {
-            SlaveEvent::Rpdo
-        } else {
-            SlaveEvent::None
-        };
-        (resp, ev)
+        (resp, SlaveEvent::None)
+    }
+
+    /// The bytes RPDO1's mapping (0x1600) takes.
+    fn rpdo_length(&self) -> usize {
+        let od = self.od();
+        let count = od::get_u32(od, idx::RPDO_MAP, 0).unwrap_or(0) as u8;
+        let bits: u32 = (1..=count)
+            .map(|s| od::get_u32(od, idx::RPDO_MAP, s).unwrap_or(0) & 0xFF)
+            .sum();
+        (bits as usize).div_ceil(8)
     }
 
     /// The TPDOs due at this SYNC (operational only), packed from the dictionary as it is
@@ -344,6 +445,11 @@ impl Slave {
                 (!ok).then_some(abort::VALUE_RANGE)
             }
             idx::SYNC_COB_ID => (v & !0x8000_07FF != 0).then_some(abort::VALUE_RANGE),
+            idx::ERROR_FIELD if sub == 0 => (v != 0).then_some(abort::VALUE_RANGE),
+            idx::ABORT_CONNECTION => {
+                (!(0..=3).contains(&(v as u16 as i16))).then_some(abort::VALUE_RANGE)
+            }
+            idx::ERROR_BEHAVIOUR if sub == 1 => (v > 2).then_some(abort::VALUE_RANGE),
             i if (idx::RPDO_COMM..idx::RPDO_COMM + od::RPDOS).contains(&i)
                 || (idx::TPDO_COMM..idx::TPDO_COMM + od::TPDOS).contains(&i) =>
             {

@@ -1,5 +1,7 @@
 //! CiA 402 state machine through the protocol, limits, faults, heartbeat consumer and
-//! malformed input. Statusword and EMCY bytes are written from CiA 402 / CiA 301.
+//! malformed input. Statusword and EMCY bytes are written from CiA 402 / CiA 301 (the
+//! statuswords with bit 9 remote, bit 4 voltage enabled and, in CST, bit 12 "target
+//! followed": tests/statusword_bits.rs).
 
 mod common;
 use common::*;
@@ -32,39 +34,39 @@ fn enabled(d: &mut Dut) {
 fn controlword_walk_gives_the_standard_statuswords() {
     let mut d = Dut::new();
     d.start();
-    assert_eq!(d.sync_statusword(), 0x0040, "switch on disabled");
+    assert_eq!(d.sync_statusword(), 0x0240, "switch on disabled");
     let walk = [
-        (0x0006, 0x0021, "shutdown -> ready to switch on"),
-        (0x0007, 0x0023, "switch on -> switched on"),
-        (0x000F, 0x0027, "enable operation -> operation enabled"),
-        (0x0007, 0x0023, "disable operation -> switched on"),
-        (0x000F, 0x0027, "enable operation"),
-        (0x0006, 0x0021, "shutdown -> ready to switch on"),
-        (0x0000, 0x0040, "disable voltage -> switch on disabled"),
+        (0x0006, 0x0231, "shutdown -> ready to switch on"),
+        (0x0007, 0x0233, "switch on -> switched on"),
+        (0x000F, 0x1237, "enable operation -> operation enabled"),
+        (0x0007, 0x0233, "disable operation -> switched on"),
+        (0x000F, 0x1237, "enable operation"),
+        (0x0006, 0x0231, "shutdown -> ready to switch on"),
+        (0x0000, 0x0240, "disable voltage -> switch on disabled"),
         (
             0x000F,
-            0x0040,
+            0x0240,
             "enable operation is not a transition from switch on disabled",
         ),
-        (0x0006, 0x0021, "shutdown"),
-        (0x000F, 0x0027, "switch on + enable operation (3 + 4)"),
-        (0x0000, 0x0040, "disable voltage from operation enabled"),
+        (0x0006, 0x0231, "shutdown"),
+        (0x000F, 0x1237, "switch on + enable operation (3 + 4)"),
+        (0x0000, 0x0240, "disable voltage from operation enabled"),
     ];
     for (cw, sw, what) in walk {
         d.rpdo(cw, 0);
         assert_eq!(d.sync_statusword(), sw, "{what}");
     }
-    // The statusword object reads the same over SDO (0x6041 = 0x0040).
+    // The statusword object reads the same over SDO (0x6041 = 0x0240).
     assert_eq!(
         d.sdo([0x40, 0x41, 0x60, 0x00, 0, 0, 0, 0]),
-        [0x4B, 0x41, 0x60, 0x00, 0x40, 0x00, 0, 0]
+        [0x4B, 0x41, 0x60, 0x00, 0x40, 0x02, 0, 0]
     );
     // Controlword by SDO in pre-operational also drives the state machine.
     d.send(0x000, &[0x80, 0x05]);
     d.sdo_ok([0x2B, 0x40, 0x60, 0x00, 0x06, 0x00, 0, 0]);
     assert_eq!(
         d.sdo([0x40, 0x41, 0x60, 0x00, 0, 0, 0, 0]),
-        [0x4B, 0x41, 0x60, 0x00, 0x21, 0x00, 0, 0]
+        [0x4B, 0x41, 0x60, 0x00, 0x31, 0x02, 0, 0]
     );
 }
 
@@ -102,7 +104,7 @@ fn quick_stop_ramps_torque_to_zero() {
         statuswords.push(tpdo1(&out).0);
         torques.push(d.drive.applied_torque_nm());
     }
-    assert_eq!(statuswords[0], 0x0007, "quick stop active");
+    assert_eq!(statuswords[0], 0x0217, "quick stop active");
     for w in torques.windows(2) {
         assert!(w[1] <= w[0] && w[0] - w[1] <= 0.05 + 1e-12, "{torques:?}");
     }
@@ -110,7 +112,7 @@ fn quick_stop_ramps_torque_to_zero() {
     assert_eq!(torques[19], 0.0, "{torques:?}");
     assert_eq!(
         *statuswords.last().unwrap(),
-        0x0040,
+        0x0240,
         "then switch on disabled"
     );
 }
@@ -125,7 +127,7 @@ fn torque_above_peak_is_clamped_with_internal_limit_bit() {
     // bit 11 appears with the next publication (SYNC after the clamp).
     let _ = out;
     let (sw, _, tq) = tpdo1(&d.sync());
-    assert_eq!(sw, 0x0827);
+    assert_eq!(sw, 0x1A37);
     assert_eq!(tq, 3000, "0x0BB8");
     // 0x6072 max torque 1500 per-mille lowers the clamp.
     d.sdo_ok([0x2B, 0x72, 0x60, 0x00, 0xDC, 0x05, 0, 0]);
@@ -134,7 +136,7 @@ fn torque_above_peak_is_clamped_with_internal_limit_bit() {
     assert_eq!(d.drive.applied_torque_nm(), -1.5);
     d.rpdo(0x000F, 100);
     d.sync();
-    assert_eq!(tpdo1(&d.sync()).0, 0x0027, "limit bit cleared");
+    assert_eq!(tpdo1(&d.sync()).0, 0x1237, "limit bit cleared");
     assert_eq!(d.drive.fault(), None);
 }
 
@@ -147,7 +149,7 @@ fn overspeed_faults_with_emcy_8400_and_fault_reset_waits_for_the_cause() {
     let out = d.sync();
     // EMCY 0x085: code 0x8400 LE, error register generic | device profile = 0x21.
     assert_eq!(out[0], frame(0x085, &[0x00, 0x84, 0x21, 0, 0, 0, 0, 0]));
-    assert_eq!(tpdo1(&out).0, 0x0008, "fault");
+    assert_eq!(tpdo1(&out).0, 0x0208, "fault");
     assert_eq!(d.drive.fault(), Some(FaultKind::Overspeed));
     // 0x603F error code and 0x1001 error register.
     assert_eq!(
@@ -160,7 +162,7 @@ fn overspeed_faults_with_emcy_8400_and_fault_reset_waits_for_the_cause() {
     );
     // Fault reset while still too fast: stays in Fault.
     d.rpdo(0x0080, 0);
-    assert_eq!(d.sync_statusword(), 0x0008);
+    assert_eq!(d.sync_statusword(), 0x0208);
 }
 
 #[test]
@@ -170,11 +172,11 @@ fn fault_then_fault_reset() {
     d.send(0x701, &[0x05]);
     d.run_for(ms(60));
     assert_eq!(d.drive.state(), State::Fault);
-    assert_eq!(d.sync_statusword(), 0x0008);
+    assert_eq!(d.sync_statusword(), 0x0208);
     // Rising edge of bit 7 -> switch on disabled, EMCY "error reset" (all zero).
     let out = d.rpdo(0x0080, 0);
     assert_eq!(out, vec![frame(0x085, &[0; 8])]);
-    assert_eq!(d.sync_statusword(), 0x0040);
+    assert_eq!(d.sync_statusword(), 0x0240);
     assert_eq!(
         d.sdo([0x40, 0x01, 0x10, 0x00, 0, 0, 0, 0]),
         [0x4F, 0x01, 0x10, 0x00, 0x00, 0, 0, 0]
@@ -182,12 +184,14 @@ fn fault_then_fault_reset() {
     // Holding bit 7 is no second reset; walking up works again.
     d.rpdo(0x0080, 0);
     d.rpdo(0x0006, 0);
-    assert_eq!(d.sync_statusword(), 0x0021);
+    assert_eq!(d.sync_statusword(), 0x0231);
 }
 
 #[test]
 fn heartbeat_consumer_loss_faults_within_the_consumer_time() {
-    let mut d = Dut::new();
+    // The heartbeat consumer alone: SYNC-loss supervision (tests/sync_loss.rs) off, as no
+    // SYNC comes while the heartbeats do.
+    let mut d = Dut::with(&plant("sync_loss_cycles = 0"));
     // 0x1016:1 = (1 << 16) | 50 ms.
     d.sdo_ok([0x23, 0x16, 0x10, 0x01, 0x32, 0x00, 0x01, 0x00]);
     d.send(0x701, &[0x05]);
@@ -214,7 +218,7 @@ fn heartbeat_consumer_loss_faults_within_the_consumer_time() {
     assert_eq!(d.drive.fault(), Some(FaultKind::HeartbeatLost));
     // Torque off: the next cycle holds zero, and the one after reports it.
     let out = d.sync();
-    assert_eq!(tpdo1(&out).0, 0x0008);
+    assert_eq!(tpdo1(&out).0, 0x0208);
     assert_eq!(d.drive.applied_torque_nm(), 0.0);
     assert_eq!(tpdo1(&d.sync()).2, 0);
 }
@@ -396,6 +400,6 @@ fn reset_communication_keeps_the_fault_and_reset_node_clears_it() {
     assert_eq!(d.drive.fault(), None);
     assert_eq!(
         d.sdo([0x40, 0x41, 0x60, 0x00, 0, 0, 0, 0]),
-        [0x4B, 0x41, 0x60, 0x00, 0x40, 0x00, 0, 0]
+        [0x4B, 0x41, 0x60, 0x00, 0x40, 0x02, 0, 0]
     );
 }

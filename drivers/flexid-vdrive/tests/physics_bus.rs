@@ -63,7 +63,7 @@ fn lockstep_tpdo_positions_match_flexid_sim() {
         send(&mut master, 0x080, &[]);
         let t1 = recv_until(&mut master, 0x185);
         let d = t1.data();
-        assert_eq!(u16::from_le_bytes([d[0], d[1]]), 0x0027);
+        assert_eq!(u16::from_le_bytes([d[0], d[1]]), 0x1237);
         got_pos.push(i32::from_le_bytes([d[2], d[3], d[4], d[5]]));
         got_tq.push(i16::from_le_bytes([d[6], d[7]]));
         recv_until(&mut master, 0x285);

@@ -48,9 +48,10 @@ fn python_can_master_talks_to_the_binary() {
     let want = [
         "boot 00",
         "sdo1000 4300100092010200",
-        // SYNC 0: operation enabled 0x0027, position 0, torque 0;
+        // SYNC 0: operation enabled 0x1237 (CiA 402: remote, voltage enabled, CST target
+        // followed), position 0, torque 0;
         // SYNC 1: torque actual 250 per-mille (0x00FA), position moved.
-        "tpdo1 2700000000000000",
+        "tpdo1 3712000000000000",
     ];
     let got: Vec<&str> = stdout.lines().collect();
     assert_eq!(got[0], want[0]);
@@ -58,7 +59,7 @@ fn python_can_master_talks_to_the_binary() {
     assert!(got[2].starts_with(want[2]), "{}", got[2]);
     let second = got[2].split(' ').nth(2).unwrap();
     assert!(
-        second.starts_with("2700") && second.ends_with("fa00"),
+        second.starts_with("3712") && second.ends_with("fa00"),
         "{second}"
     );
     assert_ne!(&second[4..12], "00000000", "the axis moved");

@@ -211,7 +211,7 @@ fn pdo_remapping_by_sdo_then_sync() {
         d.sdo([0x2F, 0x00, 0x1A, 0x00, 0, 0, 0, 0]),
         [0x80, 0x00, 0x1A, 0x00, 0x22, 0x00, 0x00, 0x08]
     );
-    // At rest: velocity 0, statusword 0x0040 (switch on disabled); TPDO2 unchanged.
+    // At rest: velocity 0, statusword 0x0240 (switch on disabled, remote); TPDO2 unchanged.
     let s1 = d.sync();
     assert_eq!(
         s1,
@@ -222,7 +222,7 @@ fn pdo_remapping_by_sdo_then_sync() {
     assert_eq!(
         s2,
         vec![
-            frame(0x185, &[0, 0, 0, 0, 0x40, 0x00]),
+            frame(0x185, &[0, 0, 0, 0, 0x40, 0x02]),
             frame(0x285, &[0, 0, 0, 0])
         ]
     );
@@ -238,5 +238,5 @@ fn velocity_layout_with_a_moving_axis() {
     let out = d.sync();
     assert_eq!(out[1], frame(0x285, &[0xE6, 0x8B, 0x02, 0x00]));
     // TPDO1 at the first SYNC: position 0, torque 0.
-    assert_eq!(out[0], frame(0x185, &[0x40, 0x00, 0, 0, 0, 0, 0, 0]));
+    assert_eq!(out[0], frame(0x185, &[0x40, 0x02, 0, 0, 0, 0, 0, 0]));
 }

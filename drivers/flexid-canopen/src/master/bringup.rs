@@ -84,6 +84,9 @@ impl<B: CanBus> Drive<B, PreOperational> {
             next_heartbeat: None,
             last_cw: Controlword(0),
             last_emcy: None,
+            last_sync: None,
+            drive_nmt: None,
+            error_watch: super::error_frames::ErrorFrameWatch::new(config.error_frames),
             nmt_operational: false,
             armed: false,
         };

@@ -46,6 +46,9 @@ pub struct MasterConfig {
     pub bitrate: u32,
     /// Largest admissible bus load (fraction; CANopen practice 0.7).
     pub max_bus_load: f64,
+    /// When CAN error frames stop the cycle (a single one does not; error passive, bus-off
+    /// or a burst does): [`super::error_frames`].
+    pub error_frames: super::ErrorFramePolicy,
     /// The time source (inject a fake one in tests).
     pub clock: fn() -> Instant,
 }
@@ -67,6 +70,7 @@ impl Default for MasterConfig {
             max_missed_time: Duration::from_millis(50),
             bitrate: 1_000_000,
             max_bus_load: 0.7,
+            error_frames: super::ErrorFramePolicy::default(),
             clock: Instant::now,
         }
     }
@@ -126,6 +130,6 @@ impl MasterConfig {
         if self.bitrate == 0 || !(self.max_bus_load > 0.0 && self.max_bus_load <= 1.0) {
             return Err("bitrate must be positive and max_bus_load in (0, 1]".into());
         }
-        Ok(())
+        self.error_frames.validate()
     }
 }

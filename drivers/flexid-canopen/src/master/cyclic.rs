@@ -17,6 +17,8 @@ const NMT_START: u8 = 0x01;
 /// Longest wait for one step's feedback in the CiA 402 walks (enable, disable, quick stop).
 const WALK_FEEDBACK_WAIT: Duration = Duration::from_millis(20);
 const NMT_ENTER_PRE_OPERATIONAL: u8 = 0x80;
+/// Heartbeat state byte of an NMT stopped node (CiA 301).
+const NMT_STATE_STOPPED: u8 = 0x04;
 
 /// How strict one exchange is.
 #[derive(Clone, Copy, PartialEq, Eq)]
@@ -53,13 +55,7 @@ impl<B: CanBus> Link<B> {
                     self.on_event(ev, mode)?;
                 }
                 Ok(None) => break,
-                Err(source) => {
-                    return Err(MasterError::Bus {
-                        node,
-                        during: "receiving feedback",
-                        source,
-                    })
-                }
+                Err(source) => self.on_bus_error(source)?,
             }
         }
         let [rpdo, sync] = self.exchange.begin(controlword.0, torque_permille);
@@ -68,6 +64,7 @@ impl<B: CanBus> Link<B> {
         // frames that arrived before this instant answer an earlier SYNC (see exchange)
         self.exchange.sync_sent(sync_time);
         self.send(&sync, "sending SYNC")?;
+        self.last_sync = Some(sync_time);
         self.last_cw = controlword;
         while !self.exchange.complete() {
             let left = deadline.saturating_duration_since(self.now());
@@ -80,13 +77,7 @@ impl<B: CanBus> Link<B> {
                     self.on_event(ev, mode)?;
                 }
                 Ok(None) => {}
-                Err(source) => {
-                    return Err(MasterError::Bus {
-                        node,
-                        during: "receiving feedback",
-                        source,
-                    })
-                }
+                Err(source) => self.on_bus_error(source)?,
             }
         }
         let (complete, consecutive) = self.exchange.end();
@@ -95,6 +86,34 @@ impl<B: CanBus> Link<B> {
             return Err(MasterError::TpdoLost { node, consecutive });
         }
         Ok((sync_time, complete))
+    }
+
+    /// A bus error while receiving: tolerated (counted) or the end of the exchange, as
+    /// the error-frame policy says.
+    fn on_bus_error(&mut self, source: flexid_can::BusError) -> Result<(), MasterError> {
+        use super::error_frames::Verdict;
+        let node = self.node();
+        match self.error_watch.on_error(&source, self.now()) {
+            Verdict::Tolerate => {
+                tracing::warn!(node, "{source} (tolerated)");
+                if matches!(source, flexid_can::BusError::ErrorFrame { .. }) {
+                    self.exchange.counters.bus_errors += 1;
+                }
+                Ok(())
+            }
+            Verdict::Burst { frames } => Err(MasterError::ErrorFrameBurst {
+                node,
+                frames,
+                window: self.cfg.error_frames.window,
+                max: self.cfg.error_frames.max_frames,
+                last: source.to_string(),
+            }),
+            Verdict::Abort => Err(MasterError::Bus {
+                node,
+                during: "receiving feedback",
+                source,
+            }),
+        }
     }
 
     fn on_event(&mut self, ev: Event, mode: Mode) -> Result<(), MasterError> {
@@ -112,8 +131,11 @@ impl<B: CanBus> Link<B> {
                     });
                 }
             }
-            Event::NmtState(state) if mode == Mode::Strict => {
-                return Err(MasterError::NmtStateChanged { node, state });
+            Event::NmtState(state) => {
+                self.drive_nmt = Some(state);
+                if mode == Mode::Strict {
+                    return Err(MasterError::NmtStateChanged { node, state });
+                }
             }
             _ => {}
         }
@@ -129,6 +151,8 @@ impl<B: CanBus> Link<B> {
         let node = self.node();
         let (error_code, register) = match self.last_emcy {
             Some(m) => (m.error_code, m.error_register.0),
+            // a stopped node answers no SDO: nothing to read
+            None if self.drive_nmt == Some(NMT_STATE_STOPPED) => (0, 0),
             None => {
                 let code_index = self.profile.objects.error_code;
                 let code = self.sdo.read_u16(code_index, 0).unwrap_or(0);
@@ -156,21 +180,30 @@ impl<B: CanBus> Link<B> {
         // to switch on: Disable voltage until the drive reports).
         let mut seen = self.state();
         loop {
+            // A stopped node processes no PDO: walking it down can only time out.
+            if target == Target::SwitchOnDisabled && self.drive_nmt == Some(NMT_STATE_STOPPED) {
+                return Err(MasterError::NmtStopped { node });
+            }
             let cw = match seen {
                 None => Controlword::DISABLE_VOLTAGE,
                 Some(State::OperationEnabled) if quick_stop_first => Controlword::QUICK_STOP,
                 Some(s) => next_controlword(s, target),
             }
             .after(self.last_cw);
+            // One SYNC per cycle period, from the last one sent (by an earlier walk or
+            // the cycle).
+            self.wait_for_slot();
             // Paced at the cycle period, but the feedback of a slow drive or bus (an
             // emulated machine, a loaded host) is awaited up to WALK_FEEDBACK_WAIT: a
             // TPDO that misses its cycle's deadline is stale and is never used.
             let cycle_start = self.now();
-            let deadline = cycle_start + period;
             let feedback_deadline = cycle_start + period.max(WALK_FEEDBACK_WAIT);
             let (_, _) = self.exchange(cw, 0, feedback_deadline, Mode::Walk)?;
             seen = self.state();
             if seen == Some(target.state()) {
+                // The walk's last cycle lasts its whole period too: whoever sends the
+                // next SYNC (the caller's first cycle) sends it a period after this one.
+                self.wait_for_slot();
                 return Ok(());
             }
             if self.now().duration_since(start) >= limit {
@@ -187,7 +220,14 @@ impl<B: CanBus> Link<B> {
                     after: limit,
                 });
             }
-            let left = deadline.saturating_duration_since(self.now());
+        }
+    }
+
+    /// Sleeps until one cycle period after the last SYNC sent (at once if none was, or
+    /// if that time has passed).
+    fn wait_for_slot(&self) {
+        if let Some(last) = self.last_sync {
+            let left = (last + self.cfg.cycle_period).saturating_duration_since(self.now());
             if !left.is_zero() {
                 std::thread::sleep(left);
             }
@@ -212,10 +252,11 @@ impl<B: CanBus> Drive<B, Configured> {
     pub fn enable(mut self) -> Result<Drive<B, Enabled>, MasterError> {
         let l = &mut self.link;
         l.drain();
-        if !l.nmt_operational {
+        if !l.nmt_operational || l.drive_nmt.is_some() {
             l.nmt(NMT_START, "NMT start")?;
             l.nmt_operational = true;
         }
+        l.drive_nmt = None;
         l.exchange = Exchange::new(l.node());
         l.unwrap = PositionUnwrap::default();
         l.last_emcy = None;

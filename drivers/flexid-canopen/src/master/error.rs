@@ -148,6 +148,16 @@ pub enum MasterError {
         /// The reported state byte (0x00 boot-up, 0x04 stopped, 0x7F pre-operational).
         state: u8,
     },
+    /// The drive is NMT stopped (its heartbeat says 0x04): it answers no PDO and no SDO,
+    /// so the master cannot walk it down; its abort connection option code (0x6007)
+    /// decides what its power stage did when it stopped.
+    #[error(
+        "node {node} is NMT stopped: it answers no PDO and no SDO, so it cannot be disabled          by the master; its abort connection option (0x6007) decides its power stage"
+    )]
+    NmtStopped {
+        /// The drive's node-id.
+        node: u8,
+    },
     /// The CiA 402 walk did not reach its target in time.
     #[error("node {node}: did not reach {target} within {after:?}, last state {last}")]
     StateMachine {
@@ -177,6 +187,20 @@ pub enum MasterError {
         /// The value given.
         torque_nm: f64,
     },
+    /// More CAN error frames than the error-frame policy allows within its window.
+    #[error("node {node}: {frames} CAN error frames within {window:?} (the policy allows {max}); last: {last}")]
+    ErrorFrameBurst {
+        /// The drive's node-id.
+        node: u8,
+        /// Error frames within the window.
+        frames: u16,
+        /// The policy's window.
+        window: Duration,
+        /// The policy's most frames.
+        max: u16,
+        /// The last error frame, decoded.
+        last: String,
+    },
     /// The master configuration is invalid.
     #[error("invalid master configuration: {0}")]
     Config(String),
@@ -193,7 +217,12 @@ pub fn emcy_text(code: u16) -> &'static str {
         0x4310 => "excess drive temperature",
         0x7121 => "motor blocked",
         0x7300..=0x73FF => "sensor (encoder) error",
+        0x8100 => "communication (connection aborted)",
         0x8130 => "life guard or heartbeat error",
+        0x8210 => "PDO not processed due to length error",
+        0x8220 => "PDO length exceeded",
+        0x8240 => "unexpected SYNC data length",
+        0x8700 => "sync controller (SYNC lost)",
         0x8611 => "following error",
         _ => match code >> 8 {
             0x10 => "generic error",

@@ -21,6 +21,7 @@ mod bringup;
 pub mod config;
 mod cyclic;
 pub mod error;
+pub mod error_frames;
 pub mod exchange;
 
 use std::marker::PhantomData;
@@ -32,6 +33,7 @@ use flexid_can::{CanBus, CanFrame};
 pub use bringup::bring_up;
 pub use config::MasterConfig;
 pub use error::{emcy_text, MasterError};
+pub use error_frames::ErrorFramePolicy;
 
 use crate::cia402::Controlword;
 use crate::cob;
@@ -89,6 +91,14 @@ struct Link<B: CanBus> {
     next_heartbeat: Option<Instant>,
     last_cw: Controlword,
     last_emcy: Option<EmergencyMessage>,
+    /// The NMT state the drive's heartbeat last reported when it was not operational
+    /// (0x04 stopped, 0x7F pre-operational); cleared by the master's NMT start.
+    drive_nmt: Option<u8>,
+    /// The error frames of the recent window (the error-frame policy).
+    error_watch: error_frames::ErrorFrameWatch,
+    /// When the last SYNC went out: the CiA 402 walks keep one SYNC per cycle period
+    /// from it.
+    last_sync: Option<Instant>,
     nmt_operational: bool,
     armed: bool,
 }

@@ -137,14 +137,9 @@ pub fn estimate_frf(
             }
             .into());
         }
-        let repeating = quantum.map(|q| {
-            let n = info.period_samples;
-            let start = (info.transient_periods * n).min(signal.len());
-            let periods = info.periods.min((signal.len() - start) / n.max(1));
-            let sigma = frf::quantisation::scatter_std(&signal[start..], n, periods);
-            frf::quantisation::repeating_from_scatter(q, sigma.unwrap_or(0.0))
-        });
-        let mut est = frf::PeriodicEstimator::from_info(info, fs, kind)?.with_quantum(repeating);
+        let repeating = quantum.and_then(|q| repeating_per_line(q, signal, info));
+        let mut est =
+            frf::PeriodicEstimator::from_info(info, fs, kind)?.with_quantum_spectrum(repeating);
         est.push(u, &y)?;
         let frf = est.estimate()?;
         let choices = format!(
@@ -249,4 +244,30 @@ pub(crate) fn mobility_equivalent(frf: &Frf) -> Frf {
     }
     out.kind = FrfKind::DifferencedVelocity;
     out
+}
+
+/// The repeating quantisation error of a periodic record on a grid of step `q`, per line
+/// of a period ([`frf::quantisation_spectrum`]): the noise behind the counts from the
+/// period-to-period scatter of the steady periods, the speed from their mean at the
+/// excited lines (without those, e.g. lines to be inferred, the power spread evenly).
+fn repeating_per_line(
+    q: f64,
+    signal: &[f64],
+    info: &crate::excitation::ExcitationInfo,
+) -> Option<Vec<f64>> {
+    let n = info.period_samples.max(1);
+    let start = (info.transient_periods * n).min(signal.len());
+    let periods = info.periods.min((signal.len() - start) / n);
+    let steady = &signal[start..];
+    let scatter = frf::quantisation::scatter_std(steady, n, periods).unwrap_or(0.0);
+    let sigma = frf::quantisation::noise_std_from_scatter(q, scatter);
+    match frf::quantisation_spectrum::periodic_speed(steady, n, periods, &info.excited_lines) {
+        Some(speed) => Some(frf::quantisation_spectrum::repeating_spectrum(
+            q, sigma, &speed,
+        )),
+        None => Some(vec![
+            frf::quantisation::repeating_variance(q, sigma);
+            n / 2 + 1
+        ]),
+    }
 }

@@ -22,6 +22,7 @@ mod error;
 pub mod lpm;
 mod periodic;
 pub mod quantisation;
+pub mod quantisation_spectrum;
 mod ramp;
 mod stepped;
 mod support;

@@ -69,6 +69,25 @@ pub struct NonExcitedLevels {
     pub periods: usize,
 }
 
+/// The repeating quantisation error of the recorded motion, as a white-equivalent power
+/// [(signal unit)²] ([`super::quantisation`]).
+#[derive(Debug, Clone, PartialEq)]
+enum RepeatingError {
+    /// The same on every line (the error spread evenly).
+    Even(f64),
+    /// Per line `0..=N/2` (where the motion crosses counts).
+    PerLine(Vec<f64>),
+}
+
+impl RepeatingError {
+    fn at_line(&self, k: usize) -> f64 {
+        match self {
+            RepeatingError::Even(p) => *p,
+            RepeatingError::PerLine(v) => v.get(k).copied().unwrap_or(0.0),
+        }
+    }
+}
+
 /// Streaming FRF estimator for periodic excitation.
 ///
 /// Feed input (torque) and output samples with [`push`](Self::push) in chunks of any
@@ -88,7 +107,7 @@ pub struct PeriodicEstimator {
     /// Power of the repeating quantisation error of the recorded motion signal (an
     /// encoder's counts), when known: added to each line's variance
     /// ([`super::quantisation`]).
-    quantum: Option<f64>,
+    quantum: Option<RepeatingError>,
     fft: Arc<dyn RealToComplex<f64>>,
     buf_u: Vec<f64>,
     buf_y: Vec<f64>,
@@ -203,7 +222,19 @@ impl PeriodicEstimator {
     /// ([`super::quantisation::repeating_variance`]): each line's variance gets the floor of
     /// [`super::quantisation::line_variance`]. `None` (the default) adds nothing.
     pub fn with_quantum(mut self, repeating_var: Option<f64>) -> Self {
-        self.quantum = repeating_var.filter(|q| q.is_finite() && *q > 0.0);
+        self.quantum = repeating_var
+            .filter(|q| q.is_finite() && *q > 0.0)
+            .map(RepeatingError::Even);
+        self
+    }
+
+    /// The repeating quantisation error as a white-equivalent power per line `0..=N/2`
+    /// ([`super::quantisation_spectrum::repeating_spectrum`]: where a slow motion crosses
+    /// counts), in place of [`Self::with_quantum`]'s even spread.
+    pub fn with_quantum_spectrum(mut self, per_line: Option<Vec<f64>>) -> Self {
+        self.quantum = per_line
+            .filter(|v| v.len() == self.n / 2 + 1 && v.iter().all(|p| p.is_finite() && *p >= 0.0))
+            .map(RepeatingError::PerLine);
         self
     }
 
@@ -383,9 +414,9 @@ impl PeriodicEstimator {
                 let (su, sy, syu) = (s.m2u / d, s.m2y / d, s.m2yu / d);
                 let v =
                     (sy + h.norm_sqr() * su - 2.0 * (h.conj() * syu).re) / (pf * s.mu.norm_sqr());
-                let floor = self.quantum.map_or(0.0, |q| {
+                let floor = self.quantum.as_ref().map_or(0.0, |q| {
                     super::quantisation::line_variance(
-                        q,
+                        q.at_line(k),
                         self.kind,
                         k as f64 * df,
                         self.fs,

@@ -262,13 +262,21 @@ pub fn fit_best_start(
         .collect();
     scored.sort_by(|a, b| a.0.total_cmp(&b.0));
     let mut best: Option<(LinExt, LmResult)> = None;
-    for (_, s) in scored.into_iter().take(keep) {
+    // the `keep` best starts that can be fitted (a start whose fit fails, e.g. a singular
+    // step, does not use up a place: with all of the first `keep` failing there was no fit
+    // at all)
+    let mut fitted = 0;
+    for (_, s) in scored {
+        if fitted == keep {
+            break;
+        }
         let fit = if k == Lin::Gravity {
             prefit_then_joint(data, k, s, iters)
         } else {
             fit_linear(data, &data.targets, k, s, iters)
         };
         if let Some((m, r)) = fit {
+            fitted += 1;
             if best.as_ref().is_none_or(|b| r.cost < b.1.cost) {
                 best = Some((m, r));
             }

@@ -490,9 +490,14 @@ pub fn diagnose(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Diagnosis,
     let nom_lin = fit_nominal(&data, n, opts.band_hz, &mut idents)?;
     // the chain identified with the motor's damper to the ground taken out of the
     // measurement: a start the damper's fit cannot reach from a free chain bent to mimic it
-    let damper_free: Vec<LinExt> = damper_free::start(&data, n, opts.band_hz)
-        .into_iter()
-        .collect();
+    // (not needed when the free chain already leaves only noise)
+    let damper_free: Vec<LinExt> = if data.within_noise(data.chi2_of(&nom_lin)) {
+        Vec::new()
+    } else {
+        damper_free::start(&data, n, opts.band_hz)
+            .into_iter()
+            .collect()
+    };
     stage.lap("damper_free");
     // a candidate whose own parameter is not significant can be the nominal model fitted
     // better (its extension's path led the chain out of a basin the nominal fit stayed

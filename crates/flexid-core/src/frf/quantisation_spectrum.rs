@@ -28,9 +28,11 @@ use std::f64::consts::PI;
 /// tens to thousands of lines) and average out the histogram's own scatter.
 pub const SMOOTH_LINES: usize = 4;
 
-/// Largest sawtooth harmonic taken: the undamped series' tail beyond `K` holds about
-/// `6/(π² K)` of the power (0.5 % at 128), which is then spread evenly.
-const MAX_HARMONIC: usize = 128;
+/// Largest sawtooth harmonic placed by its speed: the undamped series' tail beyond `K`
+/// holds about `6/(π² K)` of the power (1.9 % at 32), which is then spread evenly (the
+/// high harmonics fold over the band many times: nearly even anyway). 128 cost 0.1 s per
+/// diagnosis of two 16384-sample periods, a twentieth of the speed target.
+const MAX_HARMONIC: usize = 32;
 
 /// The repeating quantisation error's power per line `0..=n/2` of a period of `n` samples,
 /// as a white-equivalent power [(signal unit)²]: the variance of a white sequence that
@@ -60,7 +62,8 @@ pub fn repeating_spectrum(q: f64, sigma: f64, speed: &[f64]) -> Vec<f64> {
         let share = harmonic / n as f64;
         for &s in speed {
             // instantaneous frequency in cycles per sample, folded into [0, 1/2]
-            let nu = (k as f64 * s / q).rem_euclid(1.0);
+            let x = k as f64 * s / q;
+            let nu = x - x.floor();
             let nu = if nu > 0.5 { 1.0 - nu } else { nu };
             let line = ((nu * n as f64).round() as usize).min(half);
             power[line] += share;

@@ -25,7 +25,7 @@ pub use period::{
 };
 pub use read::{
     parse_recording, parse_sidecar, read_recording_from, sidecar_path, ReadReport, COLUMNS,
-    TIME_STEP_TOLERANCE,
+    MAX_LINE_BYTES, TIME_STEP_TOLERANCE,
 };
 pub use types::{
     CycleCounters, CycleTiming, DriveInfo, LatencySummary, MotionSignal, Recording, RecordingEnd,

@@ -2,7 +2,9 @@
 
 use super::excite::read_excitation;
 use super::plant::PlantFile;
-use super::results::{check_band_nyquist, load, options, run_analysis, write_json, write_svg};
+use super::results::{
+    check_band_nyquist, check_excited, load, options, run_analysis, write_json, write_svg,
+};
 use super::{BodeArgs, CliError, IdentifyArgs, ImportArgs, SimulateArgs};
 use crate::recording::{write_recording, MotionSignal, Recording};
 use crate::report::render_report;
@@ -13,6 +15,7 @@ pub fn identify(a: &IdentifyArgs) -> Result<(), CliError> {
     let opts = options(&a.model)?;
     let rec = load(&a.recording)?;
     check_band_nyquist(opts.band_hz, &rec, &a.recording)?;
+    check_excited(&rec, &a.recording)?;
     let an = run_analysis(&rec, &opts)?;
     let title = a.recording.display().to_string();
     print!("{}", render_report(&an, &title));
@@ -32,6 +35,7 @@ pub fn bode(a: &BodeArgs) -> Result<(), CliError> {
     let mut opts = options(&a.model)?;
     let rec = load(&a.recording)?;
     check_band_nyquist(opts.band_hz, &rec, &a.recording)?;
+    check_excited(&rec, &a.recording)?;
     if a.no_model {
         opts.fit.starts = 1;
     }

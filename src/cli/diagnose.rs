@@ -73,6 +73,7 @@ pub fn diagnose(a: &DiagnoseArgs) -> Result<(), CliError> {
         .collect::<Result<Vec<_>, _>>()?;
     for (rec, path) in recs.iter().zip(&a.recordings) {
         super::results::check_band_nyquist(band_hz, rec, path)?;
+        super::results::check_excited(rec, path)?;
     }
     eprintln!(
         "flexid diagnose: {} recording(s), nominal {} masses ...",

@@ -176,7 +176,13 @@ pub(crate) fn generate(a: &ExciteArgs) -> Result<Excitation, CliError> {
 
 /// Write an excitation as `time_s,torque_cmd_nm` CSV plus its JSON description.
 pub fn write_excitation(path: &Path, fs: f64, ex: &Excitation) -> Result<(), CliError> {
-    let io = |e: std::io::Error| CliError::failed(format!("{}: {e}", path.display()));
+    let io = |e: std::io::Error| CliError::write(format!("{}: {e}", path.display()), Some(&e));
+    // both targets checked before either is written
+    let side = crate::recording::sidecar_path(path);
+    for p in [path, side.as_path()] {
+        crate::recording::writable_target(p)
+            .map_err(|e| CliError::write(format!("{}: {e}", p.display()), Some(&e)))?;
+    }
     write_atomic(path, |w: &mut dyn Write| {
         writeln!(w, "time_s,torque_cmd_nm")?;
         for (k, t) in ex.torque_nm.iter().enumerate() {
@@ -192,8 +198,7 @@ pub fn write_excitation(path: &Path, fs: f64, ex: &Excitation) -> Result<(), Cli
     };
     let json =
         serde_json::to_string_pretty(&sidecar).map_err(|e| CliError::failed(e.to_string()))?;
-    crate::recording::write_bytes_atomic(&crate::recording::sidecar_path(path), json.as_bytes())
-        .map_err(io)
+    crate::recording::write_bytes_atomic(&side, json.as_bytes()).map_err(io)
 }
 
 /// Read an excitation file written by [`write_excitation`]: the `torque_cmd_nm` column and

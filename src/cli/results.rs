@@ -42,6 +42,24 @@ pub(crate) fn load(path: &Path) -> Result<Recording, CliError> {
     read_recording(path).map_err(|e| CliError::input(e.to_string()))
 }
 
+/// A recording whose torque never changes excites nothing (issue 16: a constant
+/// recording was diagnosed and exited 0): exit 2, naming the file and the column.
+pub(crate) fn check_excited(rec: &Recording, path: &Path) -> Result<(), CliError> {
+    let (lo, hi) = rec
+        .torque_cmd_nm
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &t| {
+            (lo.min(t), hi.max(t))
+        });
+    if rec.len() >= 2 && lo == hi {
+        return Err(CliError::input(format!(
+            "{}: column torque_cmd_nm is {lo} N m in every row: nothing excites the axis",
+            path.display()
+        )));
+    }
+    Ok(())
+}
+
 /// `--band LO HI` against the recording's rate: a band above the Nyquist frequency holds
 /// no line of the recording (issue 16: it was accepted), exit 2.
 pub(crate) fn check_band_nyquist(

@@ -1,0 +1,116 @@
+//! Bad plant files, through `flexid simulate --plant`: exit 2, the file and the key.
+
+use super::cases::{assert_all_held, run_cases, Case};
+
+pub const KINDS: usize = 12;
+
+pub const GOOD: &str = r#"name = "two masses"
+[chain]
+inertia_kgm2 = [2e-3, 4e-3]
+stiffness_nm_per_rad = [200.0]
+damping_nms_per_rad = [0.02]
+[measurement]
+sample_rate_hz = 1000.0
+"#;
+
+/// `flexid excite` output for the plant's rate (written by the case itself).
+fn excitation() -> (String, String) {
+    let mut csv = String::from("time_s,torque_cmd_nm\n");
+    for k in 0..200 {
+        csv.push_str(&format!(
+            "{:e},{:e}\n",
+            k as f64 / 1000.0,
+            ((k % 100) as f64 * 0.3).sin()
+        ));
+    }
+    let json = r#"{"sample_rate_hz": 1000.0, "excitation": {"kind": "multisine", "period_samples": 100, "periods": 1, "transient_periods": 1, "excited_lines": [1]}}"#;
+    (csv, json.to_string())
+}
+
+fn plant(name: &'static str, text: &str, says: &[&str]) -> Case {
+    let (csv, json) = excitation();
+    Case::new(
+        name,
+        &[
+            "simulate",
+            "--plant",
+            "P.toml",
+            "--excitation",
+            "E.csv",
+            "--out",
+            "R.csv",
+        ],
+        2,
+        says,
+    )
+    .file("P.toml", text.as_bytes().to_vec())
+    .file("E.csv", csv)
+    .file("E.json", json)
+}
+
+pub fn cases() -> Vec<Case> {
+    vec![
+        plant("not TOML", "name = \"x\n[chain", &["P.toml"]),
+        plant("an empty file", "", &["P.toml", "chain"]),
+        plant(
+            "an unknown key",
+            &GOOD.replace("[measurement]", "[measurement]\nsample_rate = 5"),
+            &["P.toml", "sample_rate"],
+        ),
+        plant(
+            "a negative inertia",
+            &GOOD.replace("[2e-3, 4e-3]", "[2e-3, -4e-3]"),
+            &["P.toml", "inertia"],
+        ),
+        plant(
+            "a zero stiffness",
+            &GOOD.replace("[200.0]", "[0.0]"),
+            &["P.toml", "stiffness"],
+        ),
+        plant(
+            "one stiffness too many",
+            &GOOD.replace("[200.0]", "[200.0, 300.0]"),
+            &["P.toml", "stiffness"],
+        ),
+        plant(
+            "an inertia that is a word",
+            &GOOD.replace("[2e-3, 4e-3]", "[\"heavy\", 4e-3]"),
+            &["P.toml", "inertia_kgm2"],
+        ),
+        plant(
+            "a NaN damping",
+            &GOOD.replace("[0.02]", "[nan]"),
+            &["P.toml", "damping"],
+        ),
+        plant(
+            "a zero sample rate",
+            &GOOD.replace("1000.0", "0.0"),
+            &["P.toml", "sample_rate_hz"],
+        ),
+        plant(
+            "a backlash on a coupling that is not there",
+            &format!("{GOOD}[effects.backlash]\ncoupling = 4\nhalf_gap_rad = 1e-3\n"),
+            &["P.toml", "coupling = 4"],
+        ),
+        plant(
+            "zero substeps",
+            &GOOD.replace(
+                "sample_rate_hz = 1000.0",
+                "sample_rate_hz = 1000.0\nsubsteps = 0",
+            ),
+            &["P.toml", "substeps"],
+        ),
+        plant(
+            "a 2 MB plant file",
+            &format!("{GOOD}{}", "#".repeat(2 << 20)),
+            &["P.toml", "larger than"],
+        ),
+    ]
+}
+
+#[test]
+fn bad_plant_files() {
+    let cases = cases();
+    assert_eq!(cases.len(), KINDS);
+    assert_all_held("plant files", &run_cases(&cases));
+}

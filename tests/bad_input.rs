@@ -39,7 +39,12 @@ mod targets;
 /// The "done when": at least 50 kinds of bad input.
 #[test]
 fn at_least_fifty_kinds_of_bad_input() {
-    let kinds = recordings::KINDS + plants::KINDS + config::KINDS + api::KINDS + targets::KINDS;
+    let kinds = recordings::KINDS
+        + plants::KINDS
+        + plants::EXCITATION_KINDS
+        + config::KINDS
+        + api::KINDS
+        + targets::KINDS;
     assert!(kinds >= 50, "{kinds} kinds of bad input");
     eprintln!(
         "bad input kinds: recordings {}, plants {}, configuration {}, API {}, targets {}: {kinds}",

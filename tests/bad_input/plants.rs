@@ -114,3 +114,61 @@ fn bad_plant_files() {
     assert_eq!(cases.len(), KINDS);
     assert_all_held("plant files", &run_cases(&cases));
 }
+
+/// Kinds of bad excitation files below (`flexid simulate --excitation`).
+pub const EXCITATION_KINDS: usize = 4;
+
+/// Bad excitation files: exit 2 and the file, line or key.
+#[test]
+fn bad_excitation_files() {
+    let (csv, json) = excitation();
+    let sim = |name: &'static str, csv: &str, json: &str, says: &[&str]| {
+        Case::new(
+            name,
+            &[
+                "simulate",
+                "--plant",
+                "P.toml",
+                "--excitation",
+                "E.csv",
+                "--out",
+                "R.csv",
+            ],
+            2,
+            says,
+        )
+        .file("P.toml", GOOD.as_bytes().to_vec())
+        .file("E.csv", csv.as_bytes().to_vec())
+        .file("E.json", json.as_bytes().to_vec())
+    };
+    let with_row = |k: usize, row: &str| {
+        let mut lines: Vec<String> = csv.lines().map(|l| l.to_string()).collect();
+        lines[k] = row.to_string();
+        lines.join("\n") + "\n"
+    };
+    let nan_csv = with_row(5, "4e-3,NaN");
+    let word_csv = with_row(4, "3e-3,lots");
+    let cases = vec![
+        sim(
+            "a NaN torque",
+            &nan_csv,
+            &json,
+            &["E.csv", "line 6", "not finite"],
+        ),
+        sim(
+            "a torque that is a word",
+            &word_csv,
+            &json,
+            &["E.csv", "line 5", "torque_cmd_nm"],
+        ),
+        sim(
+            "a description with a period longer than the samples",
+            &csv,
+            &json.replace("\"period_samples\": 100", "\"period_samples\": 1500000000"),
+            &["E.json", "period_samples 1500000000"],
+        ),
+        sim("a description that is no JSON", &csv, "{", &["E.json"]),
+    ];
+    assert_eq!(cases.len(), EXCITATION_KINDS);
+    assert_all_held("excitation files", &run_cases(&cases));
+}

@@ -296,12 +296,13 @@ pub fn read_recording_from<R: BufRead>(
     })
 }
 
-/// The sidecar's excitation against the rows read: a period or a dwell block that the
+/// The sidecar's excitation against the `rows` read (also used for an excitation file and
+/// its description): a period or a dwell block that the
 /// record cannot hold is a contradiction, refused before anything is sized by it (issue
 /// 16: `period_samples` of 1.5e9 made the estimator allocate 24 GB and abort); unless the
-/// sidecar says the sweep ended early (`end.complete: false`), whose rows are kept
+/// sidecar says the sweep ended early (`end.complete: false` or `ended_because`), whose rows are kept
 /// whatever their number (the estimators then refuse the record as too short).
-fn check_excitation_fits(
+pub fn check_excitation_fits(
     sidecar: &Sidecar,
     rows: usize,
     path: &Path,
@@ -309,7 +310,10 @@ fn check_excitation_fits(
     let Some(e) = &sidecar.excitation else {
         return Ok(());
     };
-    if sidecar.end.as_ref().is_some_and(|end| !end.complete) {
+    // an interrupted measurement: `end.complete: false`, or `ended_because` (the daemon's
+    // store after a crash, and sweeps stopped early before `end` existed)
+    if sidecar.end.as_ref().is_some_and(|end| !end.complete) || sidecar.ended_because.is_some()
+    {
         return Ok(());
     }
     let err = |message: String| RecordingError::Sidecar {

@@ -312,8 +312,7 @@ pub fn check_excitation_fits(
     };
     // an interrupted measurement: `end.complete: false`, or `ended_because` (the daemon's
     // store after a crash, and sweeps stopped early before `end` existed)
-    if sidecar.end.as_ref().is_some_and(|end| !end.complete) || sidecar.ended_because.is_some()
-    {
+    if sidecar.end.as_ref().is_some_and(|end| !end.complete) || sidecar.ended_because.is_some() {
         return Ok(());
     }
     let err = |message: String| RecordingError::Sidecar {
@@ -503,5 +502,11 @@ mod tests {
             r#""end": {"complete": false, "reason": "drive fault", "cycle": 4}, "sample_rate_hz""#,
         );
         assert!(parse_recording(CSV, Some(&cut)).is_ok(), "{cut}");
+        // so does one the daemon's store closed after a crash (`ended_because`)
+        let crashed = sidecar("2000").replace(
+            r#""sample_rate_hz""#,
+            r#""ended_because": "interrupted: the daemon stopped during the sweep", "sample_rate_hz""#,
+        );
+        assert!(parse_recording(CSV, Some(&crashed)).is_ok(), "{crashed}");
     }
 }

@@ -466,3 +466,21 @@ fn million_rows() {
     let ex = back.sidecar.excitation.unwrap();
     assert_eq!((ex.period_samples, ex.excited_lines), (p, vec![3, 17]));
 }
+
+/// A recording whose sidecar target is refused (a FIFO) leaves nothing written: the CSV
+/// is not replaced beside a sidecar that could not be.
+#[test]
+fn a_refused_sidecar_target_writes_no_csv() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("REC.csv");
+    std::fs::write(&path, "old").unwrap();
+    let st = std::process::Command::new("mkfifo")
+        .arg(sidecar_path(&path))
+        .status()
+        .unwrap();
+    assert!(st.success());
+    let rec = parse_recording(&csv_rows(10), None).unwrap().recording;
+    let e = write_recording(&path, &rec).unwrap_err();
+    assert!(e.to_string().contains("FIFO"), "{e}");
+    assert_eq!(std::fs::read_to_string(&path).unwrap(), "old");
+}

@@ -90,7 +90,7 @@ pub fn raise_nofile() -> u64 {
             }
         }
     }
-    lim.rlim_cur as u64
+    lim.rlim_cur
 }
 
 struct Conn {
@@ -147,7 +147,7 @@ impl Table {
         } else {
             // the client with the most connections that has an idle one loses its oldest
             let mut clients: Vec<(IpAddr, usize)> = per_ip.into_iter().collect();
-            clients.sort_by(|a, b| b.1.cmp(&a.1));
+            clients.sort_by_key(|c| std::cmp::Reverse(c.1));
             match clients
                 .into_iter()
                 .find_map(|(client, _)| idle_oldest(client))

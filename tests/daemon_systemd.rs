@@ -36,6 +36,8 @@ fn unit_has_the_hardening_and_notify_settings() {
         "RestrictAddressFamilies=AF_UNIX AF_INET AF_INET6 AF_CAN AF_NETLINK",
         "LimitRTPRIO=",
         "LimitMEMLOCK=",
+        // issue 16: descriptors for the connection limit plus the store's reserve
+        "LimitNOFILE=",
     ] {
         assert!(unit.lines().any(|l| l.starts_with(line)), "missing {line}");
     }

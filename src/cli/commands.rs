@@ -2,7 +2,9 @@
 
 use super::excite::read_excitation;
 use super::plant::PlantFile;
-use super::results::{load, options, run_analysis, write_json, write_svg};
+use super::results::{
+    check_band_nyquist, check_excited, load, options, run_analysis, write_json, write_svg,
+};
 use super::{BodeArgs, CliError, IdentifyArgs, ImportArgs, SimulateArgs};
 use crate::recording::{write_recording, MotionSignal, Recording};
 use crate::report::render_report;
@@ -12,6 +14,8 @@ use std::path::Path;
 pub fn identify(a: &IdentifyArgs) -> Result<(), CliError> {
     let opts = options(&a.model)?;
     let rec = load(&a.recording)?;
+    check_band_nyquist(opts.band_hz, &rec, &a.recording)?;
+    check_excited(&rec, &a.recording)?;
     let an = run_analysis(&rec, &opts)?;
     let title = a.recording.display().to_string();
     print!("{}", render_report(&an, &title));
@@ -30,6 +34,8 @@ pub fn identify(a: &IdentifyArgs) -> Result<(), CliError> {
 pub fn bode(a: &BodeArgs) -> Result<(), CliError> {
     let mut opts = options(&a.model)?;
     let rec = load(&a.recording)?;
+    check_band_nyquist(opts.band_hz, &rec, &a.recording)?;
+    check_excited(&rec, &a.recording)?;
     if a.no_model {
         opts.fit.starts = 1;
     }
@@ -114,7 +120,7 @@ pub fn simulate(a: &SimulateArgs) -> Result<(), CliError> {
         }
     }
     let rec = simulate_to(&plant, &torque, sidecar, a.seed)?;
-    write_recording(&a.out, &rec).map_err(|e| CliError::failed(e.to_string()))?;
+    write_recording(&a.out, &rec).map_err(CliError::write_recording)?;
     println!("wrote {} ({} samples)", a.out.display(), rec.len());
     Ok(())
 }
@@ -164,7 +170,7 @@ pub fn import(a: &ImportArgs) -> Result<(), CliError> {
         import_file(Path::new(source), &spec).map_err(|e| CliError::input(e.to_string()))?
     };
     let out = a.out.clone().unwrap_or_else(|| "recording.csv".into());
-    write_recording(&out, &rec).map_err(|e| CliError::failed(e.to_string()))?;
+    write_recording(&out, &rec).map_err(CliError::write_recording)?;
     println!(
         "wrote {} ({} samples at {} Hz)",
         out.display(),

@@ -1,11 +1,17 @@
 //! `flexid diagnose REC1.csv [REC2.csv ...] --masses N [--json OUT.json] [--svg gap.svg]`.
 
 use super::CliError;
+use crate::analysis::{to_json as analysis_json, AnalysisOptions};
 use crate::diagnose::{diagnose as run_diagnosis, json::to_json, DiagnoseOptions};
+use crate::identify::fit::{FitBudget, FitOptions};
+use crate::recording::Recording;
 use crate::recording::{read_recording, write_bytes_atomic};
 use crate::report::diagnosis::render;
+use crate::report::render_report;
 use clap::Args;
 use std::path::PathBuf;
+use std::sync::{mpsc, Arc};
+use std::time::{Duration, Instant};
 
 #[derive(Debug, Args)]
 pub struct DiagnoseArgs {
@@ -29,7 +35,16 @@ pub struct DiagnoseArgs {
     /// distortion is seen.
     #[arg(long)]
     pub all_effects: bool,
+    /// Time cap of the diagnosis [s]: after it, the nominal chain of the first recording
+    /// is identified (in at most a quarter of the cap more, at least 1 s) and returned
+    /// without a verdict, marked `TIME CAP` in the report and `time_cap.capped` in the JSON.
+    #[arg(long, default_value_t = DEFAULT_DIAGNOSE_MAX_SECONDS)]
+    pub max_seconds: f64,
 }
+
+/// Default of `flexid diagnose --max-seconds`: what a technician waits at the axis; the
+/// diagnoses of the tests and benchmarks take seconds to a minute.
+pub const DEFAULT_DIAGNOSE_MAX_SECONDS: f64 = 300.0;
 
 pub fn diagnose(a: &DiagnoseArgs) -> Result<(), CliError> {
     if a.masses == 0 || a.masses > 8 {
@@ -45,39 +60,128 @@ pub fn diagnose(a: &DiagnoseArgs) -> Result<(), CliError> {
         }
         Some(b) => return Err(CliError::input(format!("--band {b:?}: need LO_HZ < HI_HZ"))),
     };
+    if !(a.max_seconds.is_finite() && a.max_seconds > 0.0 && a.max_seconds < 1e9) {
+        return Err(CliError::input(format!(
+            "--max-seconds {}: must be a positive number of seconds (below 1e9)",
+            a.max_seconds
+        )));
+    }
     let recs = a
         .recordings
         .iter()
         .map(|p| read_recording(p).map_err(|e| CliError::input(e.to_string())))
         .collect::<Result<Vec<_>, _>>()?;
+    for (rec, path) in recs.iter().zip(&a.recordings) {
+        super::results::check_band_nyquist(band_hz, rec, path)?;
+        super::results::check_excited(rec, path)?;
+    }
     eprintln!(
         "flexid diagnose: {} recording(s), nominal {} masses ...",
         recs.len(),
         a.masses
     );
-    let d = run_diagnosis(
-        &recs,
-        &DiagnoseOptions {
-            masses: a.masses,
-            band_hz,
-            force_nonlinear: a.all_effects,
-            ..DiagnoseOptions::default()
-        },
-    )
-    .map_err(|e| CliError::failed(e.to_string()))?;
+    let opts = DiagnoseOptions {
+        masses: a.masses,
+        band_hz,
+        force_nonlinear: a.all_effects,
+        ..DiagnoseOptions::default()
+    };
+    let t0 = Instant::now();
+    let cap = Duration::from_secs_f64(a.max_seconds);
+    let recs = Arc::new(recs);
+    let (tx, rx) = mpsc::channel();
+    {
+        let recs = recs.clone();
+        // a thread of its own: at the cap it is left behind and ends with the process
+        std::thread::Builder::new()
+            .name("diagnose".into())
+            .spawn(move || {
+                let _ = tx.send(run_diagnosis(&recs, &opts));
+            })
+            .map_err(|e| CliError::failed(format!("cannot start the diagnosis: {e}")))?;
+    }
+    let d = match rx.recv_timeout(cap) {
+        Ok(d) => d.map_err(|e| CliError::failed(e.to_string()))?,
+        Err(mpsc::RecvTimeoutError::Timeout) => return capped(a, &recs[0], band_hz, t0),
+        Err(mpsc::RecvTimeoutError::Disconnected) => {
+            return Err(CliError::failed("the diagnosis stopped without an answer"))
+        }
+    };
     print!("{}", render(&d));
     if let Some(j) = &a.json {
-        let text = serde_json::to_string_pretty(&to_json(&d))
-            .map_err(|e| CliError::failed(e.to_string()))?;
+        let mut v = to_json(&d);
+        v["time_cap"] = serde_json::json!({
+            "max_seconds": a.max_seconds,
+            "capped": false,
+            "elapsed_s": t0.elapsed().as_secs_f64(),
+        });
+        let text = serde_json::to_string_pretty(&v).map_err(|e| CliError::failed(e.to_string()))?;
         write_bytes_atomic(j, text.as_bytes())
-            .map_err(|e| CliError::failed(format!("{}: {e}", j.display())))?;
+            .map_err(|e| CliError::write(format!("{}: {e}", j.display()), Some(&e)))?;
         eprintln!("flexid: wrote {}", j.display());
     }
     if let Some(s) = &a.svg {
         let svg = crate::plot::gap_svg(&d);
         write_bytes_atomic(s, svg.as_bytes())
-            .map_err(|e| CliError::failed(format!("{}: {e}", s.display())))?;
+            .map_err(|e| CliError::write(format!("{}: {e}", s.display()), Some(&e)))?;
         eprintln!("flexid: wrote {}", s.display());
+    }
+    Ok(())
+}
+
+/// The diagnosis did not finish within `--max-seconds`: the best answer so far is the
+/// nominal chain of the first recording, identified under a cap of its own (a quarter of
+/// the diagnosis's, at least 1 s), reported without a verdict and marked as capped.
+fn capped(
+    a: &DiagnoseArgs,
+    rec: &Recording,
+    band_hz: Option<[f64; 2]>,
+    t0: Instant,
+) -> Result<(), CliError> {
+    let waited_s = t0.elapsed().as_secs_f64();
+    let note = format!(
+        "TIME CAP: the diagnosis did not finish within {} s (--max-seconds); no verdict: \
+         the nominal {}-mass chain of {} instead",
+        a.max_seconds,
+        a.masses,
+        a.recordings[0].display()
+    );
+    eprintln!("flexid diagnose: {note}");
+    let opts = AnalysisOptions {
+        masses: Some(a.masses),
+        band_hz,
+        fit: FitOptions {
+            budget: FitBudget::with_cap_s((0.25 * a.max_seconds).max(1.0)),
+            ..AnalysisOptions::default().fit
+        },
+        ..AnalysisOptions::default()
+    };
+    let an = super::results::run_analysis(rec, &opts)?;
+    let title = a.recordings[0].display().to_string();
+    println!("{note}\n");
+    print!("{}", render_report(&an, &title));
+    if let Some(j) = &a.json {
+        let v = serde_json::json!({
+            "time_cap": {
+                "max_seconds": a.max_seconds,
+                "capped": true,
+                "elapsed_s": waited_s,
+            },
+            "verdict": null,
+            "note": note,
+            "nominal": analysis_json(&an),
+        });
+        let text = serde_json::to_string_pretty(&v).map_err(|e| CliError::failed(e.to_string()))?;
+        write_bytes_atomic(j, text.as_bytes())
+            .map_err(|e| CliError::write(format!("{}: {e}", j.display()), Some(&e)))?;
+        eprintln!("flexid: wrote {}", j.display());
+    }
+    if let Some(s) = &a.svg {
+        super::results::write_svg(&an, &title, s)?;
+        eprintln!(
+            "flexid: wrote {} (the nominal chain's Bode plot)",
+            s.display()
+        );
     }
     Ok(())
 }

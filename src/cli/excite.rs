@@ -176,7 +176,13 @@ pub(crate) fn generate(a: &ExciteArgs) -> Result<Excitation, CliError> {
 
 /// Write an excitation as `time_s,torque_cmd_nm` CSV plus its JSON description.
 pub fn write_excitation(path: &Path, fs: f64, ex: &Excitation) -> Result<(), CliError> {
-    let io = |e: std::io::Error| CliError::failed(format!("{}: {e}", path.display()));
+    let io = |e: std::io::Error| CliError::write(format!("{}: {e}", path.display()), Some(&e));
+    // both targets checked before either is written
+    let side = crate::recording::sidecar_path(path);
+    for p in [path, side.as_path()] {
+        crate::recording::writable_target(p)
+            .map_err(|e| CliError::write(format!("{}: {e}", p.display()), Some(&e)))?;
+    }
     write_atomic(path, |w: &mut dyn Write| {
         writeln!(w, "time_s,torque_cmd_nm")?;
         for (k, t) in ex.torque_nm.iter().enumerate() {
@@ -192,14 +198,16 @@ pub fn write_excitation(path: &Path, fs: f64, ex: &Excitation) -> Result<(), Cli
     };
     let json =
         serde_json::to_string_pretty(&sidecar).map_err(|e| CliError::failed(e.to_string()))?;
-    crate::recording::write_bytes_atomic(&crate::recording::sidecar_path(path), json.as_bytes())
-        .map_err(io)
+    crate::recording::write_bytes_atomic(&side, json.as_bytes()).map_err(io)
 }
+
+/// Largest excitation file [bytes] (a 10^7-sample excitation is about 400 MB of text).
+const MAX_EXCITATION_BYTES: u64 = 1 << 30;
 
 /// Read an excitation file written by [`write_excitation`]: the `torque_cmd_nm` column and
 /// the description beside it.
 pub fn read_excitation(path: &Path) -> Result<(Vec<f64>, Sidecar), CliError> {
-    let text = std::fs::read_to_string(path)
+    let text = flexid_files::bounded_read::read_text_bounded(path, MAX_EXCITATION_BYTES)
         .map_err(|e| CliError::input(format!("{}: {e}", path.display())))?;
     let mut lines = text
         .lines()
@@ -227,13 +235,30 @@ pub fn read_excitation(path: &Path) -> Result<(Vec<f64>, Sidecar), CliError> {
                 i + 1
             ))
         })?;
+        if !v.is_finite() {
+            return Err(CliError::input(format!(
+                "{}: line {}, column torque_cmd_nm: value {field:?} is not finite",
+                path.display(),
+                i + 1
+            )));
+        }
         torque.push(v);
     }
     let sc_path = crate::recording::sidecar_path(path);
-    let sidecar = match std::fs::read_to_string(&sc_path) {
-        Ok(t) => crate::recording::parse_sidecar(&t, &sc_path)
-            .map_err(|e| CliError::input(e.to_string()))?,
-        Err(_) => Sidecar::default(),
+    let sidecar = if sc_path.exists() {
+        let t = flexid_files::bounded_read::read_text_bounded(
+            &sc_path,
+            crate::recording::MAX_SIDECAR_BYTES,
+        )
+        .map_err(|e| CliError::input(format!("{}: {e}", sc_path.display())))?;
+        let sc = crate::recording::parse_sidecar(&t, &sc_path)
+            .map_err(|e| CliError::input(e.to_string()))?;
+        // the description against the samples (as the recording reader does)
+        crate::recording::check_excitation_fits(&sc, torque.len(), &sc_path)
+            .map_err(|e| CliError::input(e.to_string()))?;
+        sc
+    } else {
+        Sidecar::default()
     };
     Ok((torque, sidecar))
 }

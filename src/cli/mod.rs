@@ -198,6 +198,23 @@ impl CliError {
             code: 1,
         }
     }
+    /// A file could not be written: exit 2 when the writer refused the target (a device,
+    /// a FIFO, a directory, a link out of its folder: a bad argument), 1 otherwise.
+    pub(crate) fn write(message: impl Into<String>, source: Option<&std::io::Error>) -> Self {
+        let refused = source.is_some_and(|e| e.kind() == std::io::ErrorKind::InvalidInput);
+        CliError {
+            message: message.into(),
+            code: if refused { 2 } else { 1 },
+        }
+    }
+    /// [`CliError::write`] for a recording.
+    pub(crate) fn write_recording(e: crate::recording::RecordingError) -> Self {
+        let source = match &e {
+            crate::recording::RecordingError::Io { source, .. } => Some(source),
+            _ => None,
+        };
+        Self::write(e.to_string(), source)
+    }
 }
 
 /// Run one command; output goes to stdout, progress to stderr.

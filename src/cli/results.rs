@@ -42,6 +42,42 @@ pub(crate) fn load(path: &Path) -> Result<Recording, CliError> {
     read_recording(path).map_err(|e| CliError::input(e.to_string()))
 }
 
+/// A recording whose torque never changes excites nothing (issue 16: a constant
+/// recording was diagnosed and exited 0): exit 2, naming the file and the column.
+pub(crate) fn check_excited(rec: &Recording, path: &Path) -> Result<(), CliError> {
+    let (lo, hi) = rec
+        .torque_cmd_nm
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &t| {
+            (lo.min(t), hi.max(t))
+        });
+    if rec.len() >= 2 && lo == hi {
+        return Err(CliError::input(format!(
+            "{}: column torque_cmd_nm is {lo} N m in every row: nothing excites the axis",
+            path.display()
+        )));
+    }
+    Ok(())
+}
+
+/// `--band LO HI` against the recording's rate: a band above the Nyquist frequency holds
+/// no line of the recording (issue 16: it was accepted), exit 2.
+pub(crate) fn check_band_nyquist(
+    band_hz: Option<[f64; 2]>,
+    rec: &Recording,
+    path: &Path,
+) -> Result<(), CliError> {
+    let nyquist_hz = rec.sample_rate_hz / 2.0;
+    match band_hz {
+        Some([lo, hi]) if hi > nyquist_hz => Err(CliError::input(format!(
+            "--band {lo} {hi}: above the Nyquist frequency {nyquist_hz} Hz of {} ({} Hz)",
+            path.display(),
+            rec.sample_rate_hz
+        ))),
+        _ => Ok(()),
+    }
+}
+
 pub(crate) fn run_analysis(rec: &Recording, opts: &AnalysisOptions) -> Result<Analysis, CliError> {
     eprintln!(
         "flexid: {} samples at {} Hz; estimating the FRF and identifying ({} starts per order) ...",
@@ -109,14 +145,18 @@ pub(crate) fn bode_plot<'a>(a: &'a Analysis, title: &str) -> BodePlot<'a> {
 }
 
 pub(crate) fn write_svg(a: &Analysis, title: &str, out: &Path) -> Result<(), CliError> {
-    bode_plot(a, title)
-        .write_svg(out)
-        .map_err(|e| CliError::failed(format!("{}: {e}", out.display())))
+    bode_plot(a, title).write_svg(out).map_err(|e| {
+        let source = match &e {
+            crate::plot::PlotError::Io { source, .. } => Some(source),
+            _ => None,
+        };
+        CliError::write(format!("{}: {e}", out.display()), source)
+    })
 }
 
 pub(crate) fn write_json(a: &Analysis, out: &Path) -> Result<(), CliError> {
     let text =
         serde_json::to_string_pretty(&to_json(a)).map_err(|e| CliError::failed(e.to_string()))?;
     write_bytes_atomic(out, text.as_bytes())
-        .map_err(|e| CliError::failed(format!("{}: {e}", out.display())))
+        .map_err(|e| CliError::write(format!("{}: {e}", out.display()), Some(&e)))
 }

@@ -251,7 +251,7 @@ fn save(outcome: &mut SweepOutcome, info: DriveInfo, out: &Path) -> Result<PathB
     std::fs::create_dir_all(out)
         .map_err(|e| CliError::failed(format!("{}: {e}", out.display())))?;
     let path = out.join("recording.csv");
-    write_recording(&path, &outcome.recording).map_err(|e| CliError::failed(e.to_string()))?;
+    write_recording(&path, &outcome.recording).map_err(CliError::write_recording)?;
     let c = outcome.counters;
     eprintln!(
         "flexid sweep: {} rows in {:.2} s ({:.0} cycles/s), feedback missed {} (late {}, lost {}), clamped {}, master overruns {}; wrote {}",

@@ -232,7 +232,11 @@ impl Config {
     /// Read and validate the file at `path`.
     pub fn load(path: &Path) -> Result<Config, ConfigError> {
         let file = display_name(path);
-        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Io {
+        let text = flexid_files::bounded_read::read_text_bounded(
+            path,
+            flexid_files::bounded_read::MAX_TEXT_FILE_BYTES,
+        )
+        .map_err(|source| ConfigError::Io {
             file: file.clone(),
             source,
         })?;

@@ -170,8 +170,10 @@ pub(crate) fn follow(f: Follow<'_>, events: &mut mpsc::Receiver<SweepEvent>) -> 
             Ok(an) => {
                 let j = to_json(&an);
                 m.has_model = an.model.is_some();
+                // the result first, before the FRF and the plot, and retried: a moment
+                // without a free descriptor (issue 16: idle connections) must not lose it
                 if let Ok(text) = serde_json::to_string_pretty(&j) {
-                    let _ = files.write_file(RESULT_JSON, text.as_bytes());
+                    save_retrying(files, RESULT_JSON, text.as_bytes(), id);
                 }
                 let _ = files.write_frf(&an.measured.frf);
                 write_bode(files, &an, id);
@@ -284,4 +286,31 @@ fn write_bode(files: &SweepFiles, an: &Analysis, id: &str) {
         }
         Err(e) => tracing::warn!("sweep {id}: bode plot: {e}"),
     }
+}
+
+/// Tries of [`save_retrying`] and the pause before the first retry (doubling, ~6 s in all).
+const SAVE_TRIES: u32 = 7;
+const SAVE_FIRST_PAUSE: std::time::Duration = std::time::Duration::from_millis(50);
+
+/// Write `name` into the sweep's folder, retrying a failed write (no free descriptor, a
+/// full disk freed meanwhile) with doubling pauses; the last failure is logged.
+pub(crate) fn save_retrying(files: &SweepFiles, name: &str, bytes: &[u8], id: &str) -> bool {
+    let mut pause = SAVE_FIRST_PAUSE;
+    for attempt in 1..=SAVE_TRIES {
+        match files.write_file(name, bytes) {
+            Ok(()) => return true,
+            Err(e) if attempt == SAVE_TRIES => {
+                tracing::error!("sweep {id}: {name} not saved after {attempt} tries: {e}");
+            }
+            Err(e) => {
+                tracing::warn!(
+                    "sweep {id}: {name}: {e}; retrying in {} ms",
+                    pause.as_millis()
+                );
+                std::thread::sleep(pause);
+                pause *= 2;
+            }
+        }
+    }
+    false
 }

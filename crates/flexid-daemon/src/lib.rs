@@ -14,7 +14,8 @@
 //!   `interrupted` after a crash);
 //! * [`service`], [`runner`], [`hub`]: the sweeps' life cycle and event fan-out;
 //! * [`two_level`]: the two-level sweep and the gap diagnosis after it;
-//! * [`api`]: the HTTP routes (axum); [`web`]: the embedded web page;
+//! * [`api`]: the HTTP routes (axum); [`web`]: the embedded web page; [`connections`]:
+//!   the accept loop, header-read timeout and connection limits;
 //! * [`mqtt`], [`notify`], [`logging`]: MQTT, systemd notifications, journald;
 //! * [`server`]: start/stop ([`server::start`] with an injected shutdown, for tests).
 
@@ -23,6 +24,7 @@ pub mod backend;
 pub mod canopen_backend;
 mod canopen_tap;
 pub mod config;
+pub mod connections;
 mod drive_sweep;
 mod follow;
 pub mod hub;

@@ -29,6 +29,7 @@ impl Mqtt {
         let host = format!("{}:{}", cfg.host, cfg.port);
         tokio::spawn(async move {
             let mut connected = false;
+            let mut warn_every = Throttle::new(Duration::from_secs(60));
             loop {
                 tokio::select! {
                     ev = eventloop.poll() => match ev {
@@ -40,6 +41,9 @@ impl Mqtt {
                         Err(e) => {
                             if connected {
                                 tracing::warn!("mqtt: {host}: {e}; reconnecting");
+                            } else if warn_every.due(std::time::Instant::now()) {
+                                // issue 16: a broker never reached was logged at debug only
+                                tracing::warn!("mqtt: cannot connect to {host}: {e}; retrying every second (this warning at most once a minute)");
                             } else {
                                 tracing::debug!("mqtt: {host}: {e}; retrying");
                             }
@@ -84,5 +88,46 @@ impl Mqtt {
         let topic = self.topic(axis, leaf);
         let bytes = payload.to_string().into_bytes();
         let _ = self.tx.send((topic, bytes));
+    }
+}
+
+/// At most one warning per interval: the first call is due, then one per `every`.
+#[derive(Debug)]
+pub struct Throttle {
+    every: Duration,
+    last: Option<std::time::Instant>,
+}
+
+impl Throttle {
+    pub fn new(every: Duration) -> Throttle {
+        Throttle { every, last: None }
+    }
+
+    /// Whether a warning is due at `now` (and, if so, note it).
+    pub fn due(&mut self, now: std::time::Instant) -> bool {
+        if self
+            .last
+            .is_some_and(|t| now.duration_since(t) < self.every)
+        {
+            return false;
+        }
+        self.last = Some(now);
+        true
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A connection that never succeeds warns at once and then once a minute.
+    #[test]
+    fn a_failed_connection_warns_at_once_then_once_a_minute() {
+        let mut t = Throttle::new(Duration::from_secs(60));
+        let t0 = std::time::Instant::now();
+        assert!(t.due(t0));
+        assert!(!t.due(t0 + Duration::from_secs(1)));
+        assert!(!t.due(t0 + Duration::from_secs(59)));
+        assert!(t.due(t0 + Duration::from_secs(61)));
     }
 }

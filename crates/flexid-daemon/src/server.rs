@@ -5,6 +5,7 @@
 use super::api;
 use super::backend::AxisBackend;
 use super::config::{BackendKind, Config, ConfigError};
+use super::connections;
 use super::mqtt::Mqtt;
 use super::notify;
 use super::service::Service;
@@ -119,18 +120,26 @@ pub async fn start(
         addr: listen,
         source,
     })?;
+    if let Some(w) = exposure_warning(addr) {
+        tracing::warn!("{w}");
+    }
+    let nofile = connections::raise_nofile();
+    let limits = connections::Limits::for_nofile(nofile);
     let svc = Service::new(config, token, backend, store, mqtt);
     let app = api::router(svc.clone()).merge(super::web::router());
     notify::ready(&format!("API on {addr}"));
     notify::spawn_watchdog(stop_rx.clone());
-    tracing::info!("API listening on {addr}");
+    tracing::info!(
+        "API listening on {addr} (at most {} connections, {} per client, request headers within {} s; RLIMIT_NOFILE {nofile})",
+        limits.max_connections,
+        limits.max_per_client,
+        connections::HEADER_READ_TIMEOUT.as_secs()
+    );
     let svc2 = svc.clone();
     let task = tokio::spawn(async move {
-        let (graceful_tx, graceful_rx) = tokio::sync::oneshot::channel::<()>();
-        let server = axum::serve(listener, app).with_graceful_shutdown(async move {
-            let _ = graceful_rx.await;
-        });
-        let mut server = std::pin::pin!(std::future::IntoFuture::into_future(server));
+        let (graceful_tx, graceful_rx) = watch::channel(false);
+        let server = connections::serve(listener, app, limits, graceful_rx);
+        let mut server = std::pin::pin!(server);
         let result = tokio::select! {
             r = &mut server => r,
             _ = shutdown => {
@@ -139,7 +148,7 @@ pub async fn start(
                 // stop the sweeps first: their event streams end with `ended`
                 let s = svc2.clone();
                 let _ = tokio::task::spawn_blocking(move || s.shutdown(SHUTDOWN_GRACE)).await;
-                let _ = graceful_tx.send(());
+                let _ = graceful_tx.send(true);
                 match tokio::time::timeout(Duration::from_secs(5), &mut server).await {
                     Ok(r) => r,
                     Err(_) => Ok(()),
@@ -154,6 +163,26 @@ pub async fn start(
         service: svc,
         task,
     })
+}
+
+/// The warning for an API bound beyond loopback (issue 16: binding 0.0.0.0 said
+/// nothing): the daemon speaks plain HTTP, so the bearer token and the results cross the
+/// network unencrypted. `None` for a loopback address.
+pub fn exposure_warning(addr: SocketAddr) -> Option<String> {
+    let ip = addr.ip();
+    if ip.is_loopback() {
+        return None;
+    }
+    let which = if ip.is_unspecified() {
+        format!("{addr}, every network interface of this machine")
+    } else {
+        format!("{addr}, not a loopback address")
+    };
+    Some(format!(
+        "api.listen: the API is reachable on {which}, over plain HTTP without TLS: the \
+         bearer token and the results cross the network unencrypted; listen on 127.0.0.1 \
+         and reach it through an SSH tunnel or a TLS reverse proxy"
+    ))
 }
 
 /// Resolves on SIGTERM or SIGINT.
@@ -194,4 +223,23 @@ pub fn run(config_path: &std::path::Path) -> Result<(), DaemonError> {
         }
         running.wait().await
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::exposure_warning;
+
+    /// Issue 16: binding 0.0.0.0 gave no warning.
+    #[test]
+    fn a_non_loopback_address_is_warned_about() {
+        assert!(exposure_warning("127.0.0.1:8642".parse().unwrap()).is_none());
+        assert!(exposure_warning("[::1]:8642".parse().unwrap()).is_none());
+        let w = exposure_warning("0.0.0.0:8642".parse().unwrap()).unwrap();
+        assert!(
+            w.contains("every network interface") && w.contains("without TLS"),
+            "{w}"
+        );
+        let w = exposure_warning("192.168.1.20:8642".parse().unwrap()).unwrap();
+        assert!(w.contains("not a loopback address"), "{w}");
+    }
 }

@@ -205,7 +205,7 @@ pub(crate) fn run(mut job: Job, tl: TwoLevel) {
     result_json["levels"] = Value::Array(levels.clone());
     result_json["diagnosis"] = diagnosis.clone();
     if let Ok(text) = serde_json::to_string_pretty(&result_json) {
-        let _ = job.files.write_file(RESULT_JSON, text.as_bytes());
+        super::follow::save_retrying(&job.files, RESULT_JSON, text.as_bytes(), &id);
     }
     let has_model = high.is_some_and(|h| h.m.has_model);
     if let (Some(m), Some(mqtt)) = (high.and_then(|h| h.m.model.as_ref()), job.svc.mqtt()) {

@@ -7,7 +7,9 @@
 //! * [`plot`]: Bode and gap plots as SVG (plotters).
 //! * [`report`]: the plain-text reports of an identification and of a diagnosis.
 //! * [`plant`]: plant files read from disk.
+//! * [`bounded_read`]: small text files (plant files, configurations) read with a bound.
 
+pub mod bounded_read;
 pub mod import;
 pub mod plant;
 pub mod plot;

@@ -24,10 +24,12 @@ pub fn load_plant_file(path: Option<&Path>) -> Result<PlantFile, LoadPlantError>
     match path {
         None => Ok(PlantFile::parse(DEFAULT_PLANT, "embedded default plant")?),
         Some(p) => {
-            let text = std::fs::read_to_string(p).map_err(|source| LoadPlantError::Read {
-                path: p.to_path_buf(),
-                source,
-            })?;
+            let text =
+                crate::bounded_read::read_text_bounded(p, crate::bounded_read::MAX_TEXT_FILE_BYTES)
+                    .map_err(|source| LoadPlantError::Read {
+                        path: p.to_path_buf(),
+                        source,
+                    })?;
             Ok(PlantFile::parse(&text, &p.display().to_string())?)
         }
     }

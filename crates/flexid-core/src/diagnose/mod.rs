@@ -64,6 +64,14 @@ pub enum DiagnoseError {
     Rates,
     #[error("recording {0} (trajectory path): {1}")]
     Trajectory(usize, trajectory::TrajectoryError),
+    /// No line of a recording's FRF has a usable variance (one measured period, a constant
+    /// torque): nothing to fit or to compare (issue 16: this panicked).
+    #[error(
+        "recording {index}: no excited line with a usable variance ({averages} period(s) or \
+         segment(s) averaged; at least 2 measured periods after the transient and a varying \
+         torque are needed)"
+    )]
+    NoUsableLines { index: usize, averages: usize },
 }
 
 /// Options of [`diagnose`].
@@ -249,6 +257,12 @@ pub fn prepare(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Data, Diagn
                 v.is_finite() && v > 0.0 && e.frf.h[k].norm() > 0.0
             })
             .collect();
+        if keep.is_empty() {
+            return Err(DiagnoseError::NoUsableLines {
+                index: i,
+                averages: e.averages,
+            });
+        }
         let n = r.torque_cmd_nm.len().max(1) as f64;
         let mean = r.torque_cmd_nm.iter().sum::<f64>() / n;
         let rms = (r

@@ -87,4 +87,17 @@ pub enum PlantFileError {
         /// The file's name.
         origin: String,
     },
+    /// A `[measurement]` number out of its range (issue 16: `sample_rate_hz = 0` was
+    /// accepted and refused later without naming the file or the key).
+    #[error("{origin}: [measurement] {key} = {value} {requirement}")]
+    Measurement {
+        /// The file's name.
+        origin: String,
+        /// The key.
+        key: &'static str,
+        /// The value given.
+        value: f64,
+        /// What it must be.
+        requirement: &'static str,
+    },
 }

@@ -82,6 +82,42 @@ impl PlantFile {
             origin: origin(),
             source,
         })?;
+        let m = &p.measurement;
+        for (key, value, ok, requirement) in [
+            (
+                "sample_rate_hz",
+                m.sample_rate_hz,
+                m.sample_rate_hz.is_finite() && m.sample_rate_hz > 0.0,
+                "must be positive and finite",
+            ),
+            (
+                "velocity_noise_rel",
+                m.velocity_noise_rel,
+                m.velocity_noise_rel.is_finite() && m.velocity_noise_rel >= 0.0,
+                "must be zero or positive",
+            ),
+            (
+                "torque_noise_nm",
+                m.torque_noise_nm,
+                m.torque_noise_nm.is_finite() && m.torque_noise_nm >= 0.0,
+                "must be zero or positive",
+            ),
+            (
+                "initial_velocity_rad_s",
+                m.initial_velocity_rad_s,
+                m.initial_velocity_rad_s.is_finite(),
+                "must be finite",
+            ),
+        ] {
+            if !ok {
+                return Err(PlantFileError::Measurement {
+                    origin: origin(),
+                    key,
+                    value,
+                    requirement,
+                });
+            }
+        }
         p.spec()
             .validate()
             .map_err(|source| PlantFileError::Plant {

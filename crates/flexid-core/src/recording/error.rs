@@ -26,6 +26,17 @@ pub enum RecordingError {
         /// 1-based line number.
         line: usize,
     },
+    /// A line is longer than [`MAX_LINE_BYTES`](super::MAX_LINE_BYTES) (not a recording,
+    /// or a file without line ends: refused before it fills the memory).
+    #[error("{}: line {line}: longer than {max_bytes} bytes (not a recording row)", path.display())]
+    LineTooLong {
+        /// The file concerned.
+        path: PathBuf,
+        /// 1-based line number.
+        line: usize,
+        /// The limit [bytes].
+        max_bytes: usize,
+    },
     /// The file holds no header line, or a header but no data rows.
     #[error("{}: no data rows (a header line and at least one row are needed)", path.display())]
     Empty {
@@ -130,6 +141,42 @@ pub enum RecordingError {
         step_s: f64,
         /// The median step [s].
         expected_s: f64,
+    },
+    /// The sidecar's `sample_rate_hz` contradicts the `time_s` column (its median step
+    /// means another rate, by more than 1 %).
+    #[error(
+        "{}: column time_s: the median time step {median_step_s} s means {time_hz} Hz, but the \
+         sidecar's sample_rate_hz is {sidecar_hz} Hz (more than 1 % apart)",
+        path.display()
+    )]
+    RateContradiction {
+        /// The file concerned.
+        path: PathBuf,
+        /// The sidecar's rate [Hz].
+        sidecar_hz: f64,
+        /// The rate the median `time_s` step means [Hz].
+        time_hz: f64,
+        /// The median `time_s` step [s].
+        median_step_s: f64,
+    },
+    /// With the sidecar's rate, a `time_s` step that is not `1 / sample_rate_hz` (a gap, a
+    /// jump or a repeated stretch of time).
+    #[error(
+        "{}: line {line}, column time_s: time step {step_s} s, but the sidecar's \
+         sample_rate_hz {sidecar_hz} Hz means {expected_s} s (a gap or jump in time_s)",
+        path.display()
+    )]
+    TimeGap {
+        /// The file concerned.
+        path: PathBuf,
+        /// 1-based line number of the row after the step.
+        line: usize,
+        /// The step from the previous row [s].
+        step_s: f64,
+        /// `1 / sample_rate_hz` [s].
+        expected_s: f64,
+        /// The sidecar's rate [Hz].
+        sidecar_hz: f64,
     },
     /// Neither the sidecar nor `time_s` (with at least two rows) gives the sample rate.
     #[error(

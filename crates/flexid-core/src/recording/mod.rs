@@ -24,8 +24,8 @@ pub use period::{
     find_period, infer_excitation, Periodicity, EXCITED_LINE_THRESHOLD, PERIOD_TOLERANCE,
 };
 pub use read::{
-    parse_recording, parse_sidecar, read_recording_from, sidecar_path, ReadReport, COLUMNS,
-    TIME_STEP_TOLERANCE,
+    check_excitation_fits, parse_recording, parse_sidecar, read_recording_from, sidecar_path,
+    ReadReport, COLUMNS, MAX_LINE_BYTES, TIME_STEP_TOLERANCE,
 };
 pub use types::{
     CycleCounters, CycleTiming, DriveInfo, LatencySummary, MotionSignal, Recording, RecordingEnd,

@@ -4,11 +4,17 @@
 use super::error::RecordingError;
 use super::period::infer_excitation;
 use super::types::{Recording, Sidecar};
-use std::io::BufRead;
+use crate::excitation::ExcitationKind;
+use std::io::{BufRead, Read};
 use std::path::{Path, PathBuf};
 
 /// Relative tolerance on the uniformity of `time_s` steps (1 %).
 pub const TIME_STEP_TOLERANCE: f64 = 0.01;
+
+/// Longest line of `REC.csv` [bytes]: a row of six round-trip numbers takes about 150; a
+/// longer line is refused before it is held in memory (a file without line ends, or
+/// `/dev/zero`, would otherwise grow one line without bound).
+pub const MAX_LINE_BYTES: usize = 64 * 1024;
 
 /// Column names of `REC.csv`, in the order the writer uses.
 pub const COLUMNS: [&str; 6] = [
@@ -110,13 +116,21 @@ pub fn read_recording_from<R: BufRead>(
 
     loop {
         buf.clear();
-        let n = reader
+        let n = (&mut reader)
+            .take(MAX_LINE_BYTES as u64 + 1)
             .read_until(b'\n', &mut buf)
             .map_err(|source| RecordingError::Io { path: p(), source })?;
         if n == 0 {
             break;
         }
         line_no += 1;
+        if n > MAX_LINE_BYTES {
+            return Err(RecordingError::LineTooLong {
+                path: p(),
+                line: line_no,
+                max_bytes: MAX_LINE_BYTES,
+            });
+        }
         let text = std::str::from_utf8(&buf).map_err(|_| RecordingError::NotUtf8 {
             path: p(),
             line: line_no,
@@ -234,15 +248,7 @@ pub fn read_recording_from<R: BufRead>(
     let fs = match sidecar.sample_rate_hz {
         Some(fs) => {
             if present[TIME] && n >= 2 {
-                let med = median_step(&time);
-                if ((med * fs) - 1.0).abs() > TIME_STEP_TOLERANCE {
-                    warnings.push(format!(
-                        "{}: the sidecar's sample_rate_hz {fs} Hz is used, but the median \
-                         time_s step {med} s means {} Hz",
-                        path.display(),
-                        1.0 / med
-                    ));
-                }
+                check_against_rate(&time, &lines, fs, path)?;
             }
             fs
         }
@@ -290,12 +296,13 @@ pub fn read_recording_from<R: BufRead>(
     })
 }
 
-/// The sidecar's excitation against the rows read: a period or a dwell block that the
+/// The sidecar's excitation against the `rows` read (also used for an excitation file and
+/// its description): a period or a dwell block that the
 /// record cannot hold is a contradiction, refused before anything is sized by it (issue
 /// 16: `period_samples` of 1.5e9 made the estimator allocate 24 GB and abort); unless the
-/// sidecar says the sweep ended early (`end.complete: false`), whose rows are kept
+/// sidecar says the sweep ended early (`end.complete: false` or `ended_because`), whose rows are kept
 /// whatever their number (the estimators then refuse the record as too short).
-fn check_excitation_fits(
+pub fn check_excitation_fits(
     sidecar: &Sidecar,
     rows: usize,
     path: &Path,
@@ -303,18 +310,51 @@ fn check_excitation_fits(
     let Some(e) = &sidecar.excitation else {
         return Ok(());
     };
-    if sidecar.end.as_ref().is_some_and(|end| !end.complete) {
+    // an interrupted measurement: `end.complete: false`, or `ended_because` (the daemon's
+    // store after a crash, and sweeps stopped early before `end` existed)
+    if sidecar.end.as_ref().is_some_and(|end| !end.complete) || sidecar.ended_because.is_some() {
         return Ok(());
     }
     let err = |message: String| RecordingError::Sidecar {
         path: path.to_path_buf(),
         message,
     };
+    if e.kind == ExcitationKind::Multisine && e.period_samples < 2 {
+        // issue 16: `period_samples: 0` silently lost a mode
+        return Err(err(format!(
+            "excitation.period_samples {}: a multisine is periodic, its period needs at least 2 samples",
+            e.period_samples
+        )));
+    }
     if e.period_samples > rows {
         return Err(err(format!(
             "excitation.period_samples {} is longer than the recording ({rows} rows)",
             e.period_samples
         )));
+    }
+    if e.period_samples > 0 {
+        let claimed = e
+            .transient_periods
+            .checked_add(e.periods)
+            .and_then(|p| p.checked_mul(e.period_samples));
+        if claimed.is_none_or(|c| c > rows) {
+            return Err(err(format!(
+                "excitation: transient_periods {} + periods {} of period_samples {} need {} rows, \
+                 but the recording has {rows} (a truncated file, or the wrong sidecar)",
+                e.transient_periods,
+                e.periods,
+                e.period_samples,
+                claimed.map_or("more than 2^64".to_string(), |c| c.to_string())
+            )));
+        }
+        let nyquist_line = e.period_samples / 2;
+        if let Some(&line) = e.excited_lines.iter().find(|&&l| l > nyquist_line) {
+            return Err(err(format!(
+                "excitation.excited_lines: line {line} is above the Nyquist line {nyquist_line} \
+                 of a {}-sample period",
+                e.period_samples
+            )));
+        }
     }
     for (i, b) in e.blocks.iter().enumerate() {
         if b.period_samples == 0 || b.period_samples > rows || b.start >= rows {
@@ -380,6 +420,39 @@ fn check_increasing(t: &[f64], lines: &[usize], path: &Path) -> Result<(), Recor
     Ok(())
 }
 
+/// `time_s` against the sidecar's rate (issue 16: a 10 ms gap gave a wrong model and exit
+/// 0; twice the rate was only a warning): the median step must mean the sidecar's rate,
+/// and every step must be `1 / fs` within [`TIME_STEP_TOLERANCE`].
+fn check_against_rate(
+    t: &[f64],
+    lines: &[usize],
+    fs: f64,
+    path: &Path,
+) -> Result<(), RecordingError> {
+    let med = median_step(t);
+    if ((med * fs) - 1.0).abs() > TIME_STEP_TOLERANCE {
+        return Err(RecordingError::RateContradiction {
+            path: path.to_path_buf(),
+            sidecar_hz: fs,
+            time_hz: 1.0 / med,
+            median_step_s: med,
+        });
+    }
+    for k in 1..t.len() {
+        let step = t[k] - t[k - 1];
+        if ((step * fs) - 1.0).abs() > TIME_STEP_TOLERANCE {
+            return Err(RecordingError::TimeGap {
+                path: path.to_path_buf(),
+                line: lines[k],
+                step_s: step,
+                expected_s: 1.0 / fs,
+                sidecar_hz: fs,
+            });
+        }
+    }
+    Ok(())
+}
+
 fn median_step(t: &[f64]) -> f64 {
     let mut d: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
     let mid = d.len() / 2;
@@ -429,5 +502,11 @@ mod tests {
             r#""end": {"complete": false, "reason": "drive fault", "cycle": 4}, "sample_rate_hz""#,
         );
         assert!(parse_recording(CSV, Some(&cut)).is_ok(), "{cut}");
+        // so does one the daemon's store closed after a crash (`ended_because`)
+        let crashed = sidecar("2000").replace(
+            r#""sample_rate_hz""#,
+            r#""ended_because": "interrupted: the daemon stopped during the sweep", "sample_rate_hz""#,
+        );
+        assert!(parse_recording(CSV, Some(&crashed)).is_ok(), "{crashed}");
     }
 }

@@ -51,7 +51,7 @@ pub fn router(svc: Arc<Service>) -> Router {
         .fallback(|| async { ApiError::new(StatusCode::NOT_FOUND, "no such route") })
         .layer(axum::extract::DefaultBodyLimit::max(BODY_LIMIT))
         .layer(tower_http::limit::RequestBodyLimitLayer::new(BODY_LIMIT))
-        .layer(middleware::map_response(json_413))
+        .layer(middleware::map_response(json_errors))
         .layer(middleware::from_fn_with_state(svc.clone(), auth))
         .with_state(svc)
 }
@@ -75,20 +75,47 @@ async fn auth(State(svc): State<Arc<Service>>, req: Request, next: Next) -> Resp
     next.run(req).await
 }
 
-/// The body-limit layer answers 413 in plain text; give it the JSON error shape.
-async fn json_413(r: Response) -> Response {
-    if r.status() == StatusCode::PAYLOAD_TOO_LARGE
-        && r.headers()
-            .get(header::CONTENT_TYPE)
-            .is_none_or(|v| v != "application/json")
-    {
+/// Every error answer in the JSON error shape (issue 16: `?level=abc` was answered in
+/// plain text by the query extractor): an error status whose body is not JSON (axum's
+/// extractor rejections, the body-limit layer's 413, a 405) gets `{"error"}` with the
+/// original text.
+async fn json_errors(r: Response) -> Response {
+    let status = r.status();
+    let is_json = r
+        .headers()
+        .get(header::CONTENT_TYPE)
+        .is_some_and(|v| v.as_bytes().starts_with(b"application/json"));
+    if !(status.is_client_error() || status.is_server_error()) || is_json {
+        return r;
+    }
+    if status == StatusCode::PAYLOAD_TOO_LARGE {
         return ApiError::new(
-            StatusCode::PAYLOAD_TOO_LARGE,
+            status,
             format!("the request body is larger than {BODY_LIMIT} bytes"),
         )
         .into_response();
     }
-    r
+    let (parts, body) = r.into_parts();
+    let text = axum::body::to_bytes(body, 4096)
+        .await
+        .map(|b| String::from_utf8_lossy(&b).trim().to_string())
+        .unwrap_or_default();
+    let message = if text.is_empty() {
+        status
+            .canonical_reason()
+            .unwrap_or("request refused")
+            .to_string()
+    } else {
+        text
+    };
+    let mut out = ApiError::new(status, message).into_response();
+    // keep what the status needs (Allow of a 405, WWW-Authenticate of a 401)
+    for name in [header::ALLOW, header::WWW_AUTHENTICATE] {
+        if let Some(v) = parts.headers.get(&name) {
+            out.headers_mut().insert(name, v.clone());
+        }
+    }
+    out
 }
 
 #[cfg(test)]

@@ -10,8 +10,8 @@ mod atomic;
 mod read;
 mod write;
 
-pub use atomic::{write_atomic, write_bytes_atomic};
-pub use read::{read_recording, read_recording_report};
+pub use atomic::{writable_target, write_atomic, write_bytes_atomic};
+pub use read::{read_recording, read_recording_report, MAX_SIDECAR_BYTES};
 pub use write::write_recording;
 
 #[cfg(test)]

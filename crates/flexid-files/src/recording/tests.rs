@@ -127,13 +127,101 @@ fn rate_is_inferred_from_time() {
 
 #[test]
 fn sidecar_rate_wins() {
-    let r = parse_recording(&csv_rows(10), Some(r#"{"sample_rate_hz": 1024.0}"#)).unwrap();
-    assert_eq!(r.recording.sample_rate_hz, 1024.0);
+    // within 1 % of time_s's rate the sidecar's rate is the one used
+    let r = parse_recording(&csv_rows(10), Some(r#"{"sample_rate_hz": 1005.0}"#)).unwrap();
+    assert_eq!(r.recording.sample_rate_hz, 1005.0);
+}
+
+/// Issue 16: a sidecar rate contradicting time_s (twice, or 2.4 % off) was only a
+/// warning; it is an error naming both rates.
+#[test]
+fn sidecar_rate_contradicting_time_is_refused() {
+    for fs in ["1024.0", "2000", "500"] {
+        let side = format!(r#"{{"sample_rate_hz": {fs}}}"#);
+        let e = parse_recording(&csv_rows(10), Some(&side)).unwrap_err();
+        assert!(matches!(e, RecordingError::RateContradiction { .. }), "{e}");
+        let msg = e.to_string();
+        assert!(
+            msg.contains("sample_rate_hz") && msg.contains("1000"),
+            "{msg}"
+        );
+    }
+}
+
+/// Issue 16: a 10 ms gap in time_s with a sidecar gave a wrong model and exit 0; it is
+/// refused, naming the line.
+#[test]
+fn a_gap_in_time_with_a_sidecar_is_refused() {
+    let mut csv = String::from("time_s,torque_cmd_nm,position_rad\n");
+    for k in 0..100 {
+        let t = if k < 50 {
+            k as f64 * 1e-3
+        } else {
+            k as f64 * 1e-3 + 0.01
+        };
+        csv.push_str(&format!("{t:e},{},{}\n", (k as f64).sin(), k as f64 * 0.01));
+    }
+    let e = parse_recording(&csv, Some(r#"{"sample_rate_hz": 1000}"#)).unwrap_err();
+    assert!(matches!(e, RecordingError::TimeGap { line: 52, .. }), "{e}");
+    assert!(e.to_string().contains("line 52"), "{e}");
+}
+
+/// Issue 16: `period_samples: 0` of a multisine, a period count the rows cannot hold,
+/// an excited line above Nyquist: each refused, naming the key.
+#[test]
+fn sidecar_excitation_contradicting_the_rows_is_refused() {
+    let side = |ps: &str, periods: &str, lines: &str| {
+        format!(
+            r#"{{"sample_rate_hz": 1000, "excitation": {{"kind": "multisine", "period_samples": {ps}, "periods": {periods}, "transient_periods": 1, "excited_lines": [{lines}]}}}}"#
+        )
+    };
+    let csv = csv_rows(100);
+    for (s, key) in [
+        (side("0", "4", "1"), "period_samples 0"),
+        (side("20", "8", "1"), "periods 8"),
+        (side("20", "18446744073709551615", "1"), "more than 2^64"),
+        (side("20", "4", "11"), "excited_lines"),
+    ] {
+        let e = parse_recording(&csv, Some(&s)).unwrap_err();
+        assert!(matches!(e, RecordingError::Sidecar { .. }), "{e}");
+        assert!(e.to_string().contains(key), "{e} does not name {key}");
+    }
+    assert!(parse_recording(&csv, Some(&side("20", "4", "1,10"))).is_ok());
+}
+
+/// A line without an end (a file of one huge line, `/dev/zero`) is refused at
+/// `MAX_LINE_BYTES`, not read into memory whole.
+#[test]
+fn an_endless_line_is_refused() {
+    let mut csv = String::from("time_s,torque_cmd_nm,position_rad\n0,");
+    csv.push_str(&"1".repeat(MAX_LINE_BYTES + 10));
+    let e = parse_recording(&csv, None).unwrap_err();
     assert!(
-        r.warnings.iter().any(|w| w.contains("median")),
-        "{:?}",
-        r.warnings
+        matches!(e, RecordingError::LineTooLong { line: 2, .. }),
+        "{e}"
     );
+}
+
+/// A sidecar that is a FIFO is refused without blocking; one larger than
+/// `MAX_SIDECAR_BYTES` without being read.
+#[test]
+fn a_sidecar_that_is_no_regular_file_or_too_large_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("REC.csv");
+    std::fs::write(&csv, csv_rows(10)).unwrap();
+    let side = sidecar_path(&csv);
+    let st = std::process::Command::new("mkfifo")
+        .arg(&side)
+        .status()
+        .unwrap();
+    assert!(st.success());
+    let e = read_recording(&csv).unwrap_err();
+    assert!(e.to_string().contains("not a regular file"), "{e}");
+    std::fs::remove_file(&side).unwrap();
+    let f = std::fs::File::create(&side).unwrap();
+    f.set_len(MAX_SIDECAR_BYTES + 1).unwrap();
+    let e = read_recording(&csv).unwrap_err();
+    assert!(e.to_string().contains("more than a sidecar holds"), "{e}");
 }
 
 #[test]
@@ -377,4 +465,22 @@ fn million_rows() {
     assert_eq!(bits(&back.torque_cmd_nm), bits(&rec.torque_cmd_nm));
     let ex = back.sidecar.excitation.unwrap();
     assert_eq!((ex.period_samples, ex.excited_lines), (p, vec![3, 17]));
+}
+
+/// A recording whose sidecar target is refused (a FIFO) leaves nothing written: the CSV
+/// is not replaced beside a sidecar that could not be.
+#[test]
+fn a_refused_sidecar_target_writes_no_csv() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("REC.csv");
+    std::fs::write(&path, "old").unwrap();
+    let st = std::process::Command::new("mkfifo")
+        .arg(sidecar_path(&path))
+        .status()
+        .unwrap();
+    assert!(st.success());
+    let rec = parse_recording(&csv_rows(10), None).unwrap().recording;
+    let e = write_recording(&path, &rec).unwrap_err();
+    assert!(e.to_string().contains("FIFO"), "{e}");
+    assert_eq!(std::fs::read_to_string(&path).unwrap(), "old");
 }

@@ -24,8 +24,13 @@ pub fn write_recording(path: impl AsRef<Path>, rec: &Recording) -> Result<(), Re
         let p = p.to_path_buf();
         move |source| RecordingError::Io { path: p, source }
     };
-    write_atomic(path, |w: &mut dyn Write| write_csv(w, rec)).map_err(io(path))?;
     let side = sidecar_path(path);
+    // both targets checked before either is written (a refused sidecar target must not
+    // leave a new CSV beside an old sidecar)
+    for p in [path, side.as_path()] {
+        super::atomic::writable_target(p).map_err(io(p))?;
+    }
+    write_atomic(path, |w: &mut dyn Write| write_csv(w, rec)).map_err(io(path))?;
     let json = sidecar_json(rec, &side)?;
     write_atomic(&side, |w: &mut dyn Write| w.write_all(json.as_bytes())).map_err(io(&side))
 }

@@ -46,11 +46,9 @@ pub fn fit(data: &Data, nominal: &LinExt, idents: &[Chain]) -> Option<EffectFit>
                 })
         })
         .collect();
-    starts.extend(
-        std::iter::once(nominal)
-            .filter(|b| ends_in_ground(&b.chain))
-            .flat_map(held_like_the_ground),
-    );
+    if ends_in_ground(&nominal.chain) {
+        starts.extend(held_like_the_ground(nominal));
+    }
     let (m, r) = fit_best_start(data, Lin::Gravity, &starts, 80, 3)?;
     Some(finish(data, m, &r))
 }

@@ -158,6 +158,13 @@ async fn idle_connections_neither_lock_the_api_nor_lose_a_result() {
         .unwrap_or_else(|e| panic!("{}: {e}", dir.display()));
     let on_disk: serde_json::Value = serde_json::from_str(&on_disk).unwrap();
     assert!(on_disk["model"]["masses"].as_u64().is_some(), "{on_disk}");
+    // the daemon's identification has a time cap too (issue 16 item 2; it had none)
+    assert_eq!(
+        on_disk["time_cap"]["max_seconds"].as_f64(),
+        Some(120.0),
+        "{}",
+        on_disk["time_cap"]
+    );
     let served = get_json(&format!("{base}/api/v1/sweeps/{id}")).await;
     assert_eq!(served["result"]["model"], on_disk["model"]);
     // still answering with every idle connection held

@@ -166,7 +166,7 @@ pub(crate) fn follow(f: Follow<'_>, events: &mut mpsc::Receiver<SweepEvent>) -> 
         result_json: None,
     };
     if let Some(rec) = &recording {
-        match analyze(rec, &AnalysisOptions::default()) {
+        match analyze(rec, &analysis_options()) {
             Ok(an) => {
                 let j = to_json(&an);
                 m.has_model = an.model.is_some();
@@ -313,4 +313,16 @@ pub(crate) fn save_retrying(files: &SweepFiles, name: &str, bytes: &[u8], id: &s
         }
     }
     false
+}
+
+/// Time cap of a sweep's identification [s]: the command line's default
+/// (`flexid identify --max-seconds`); at the cap the best model so far is kept and
+/// `result.json` says so (`time_cap.capped`).
+pub const ANALYSIS_MAX_SECONDS: f64 = 120.0;
+
+/// The analysis of a sweep's recording: the defaults, under [`ANALYSIS_MAX_SECONDS`].
+fn analysis_options() -> AnalysisOptions {
+    let mut opts = AnalysisOptions::default();
+    opts.fit.budget = flexid_core::identify::fit::FitBudget::with_cap_s(ANALYSIS_MAX_SECONDS);
+    opts
 }

@@ -169,7 +169,9 @@ pub(crate) fn run(mut job: Job, tl: TwoLevel) {
             .map(|n| job.files.dir().join(level_dir_name(n)))
             .collect();
         let d = match masses {
-            Some(masses) => run_diagnosis(&job.hub, &id, &dirs, masses, tl.levels_nm),
+            Some(masses) => {
+                run_diagnosis(&job.hub, &id, &dirs, masses, tl.levels_nm, DIAGNOSIS_MAX)
+            }
             None => json!({"error": "no model was identified at either level to take the \
                 number of bodies from: give \"masses\" in the request"}),
         };
@@ -243,15 +245,21 @@ pub(crate) fn run(mut job: Job, tl: TwoLevel) {
     tracing::info!("axis {axis}: two-level sweep {id} ended: {reason}");
 }
 
+/// Time cap of a two-level sweep's diagnosis (`flexid diagnose --max-seconds`'s default).
+pub const DIAGNOSIS_MAX: Duration = Duration::from_secs(300);
+
 /// The diagnosis of the two saved recordings (`dirs[i]/recording.csv`) on a thread of its
 /// own, with a `progress` event (`"phase": "diagnosis"`) about every second. Returns the
-/// report as JSON ([`flexid_core::diagnose::json::to_json`] plus `levels_nm`) or `{"error"}`.
+/// report as JSON ([`flexid_core::diagnose::json::to_json`] plus `levels_nm`) or `{"error"}`;
+/// after `cap` an error marked `time_cap.capped` (the diagnosis has no budget hooks: its
+/// thread is left to finish on its own, and its answer is dropped).
 fn run_diagnosis(
     hub: &SweepHub,
     id: &str,
     dirs: &[std::path::PathBuf],
     masses: usize,
     levels_nm: [f64; 2],
+    cap: Duration,
 ) -> Value {
     let recs = match dirs
         .iter()
@@ -282,7 +290,20 @@ fn run_diagnosis(
             .to_string(),
     );
     loop {
-        match rx.recv_timeout(Duration::from_secs(1)) {
+        let left = cap.saturating_sub(t0.elapsed());
+        if left.is_zero() {
+            tracing::warn!(
+                "sweep {id}: the diagnosis did not finish within {} s (time cap)",
+                cap.as_secs_f64()
+            );
+            return json!({
+                "error": format!("the diagnosis did not finish within {} s (time cap); no verdict", cap.as_secs_f64()),
+                "time_cap": {"max_seconds": cap.as_secs_f64(), "capped": true,
+                             "elapsed_s": t0.elapsed().as_secs_f64()},
+                "levels_nm": levels_nm,
+            });
+        }
+        match rx.recv_timeout(left.min(Duration::from_secs(1))) {
             Ok(Ok(mut d)) => {
                 d["levels_nm"] = json!(levels_nm);
                 tracing::info!(
@@ -341,5 +362,69 @@ fn drain(events: &mut mpsc::Receiver<SweepEvent>) {
         if matches!(ev, SweepEvent::Ended { .. }) {
             break;
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::backend::AbortSignal;
+    use crate::store::SweepStatus;
+
+    /// A periodic recording (1 kHz, 100-sample period, 1 + 3 periods) of a damped body.
+    fn write_level(dir: &std::path::Path) {
+        std::fs::create_dir_all(dir).unwrap();
+        let mut csv = String::from("time_s,torque_cmd_nm,position_rad\n");
+        let (mut v, mut x) = (0.0f64, 0.0f64);
+        for k in 0..400 {
+            let u: f64 = (1..=20)
+                .map(|l| (std::f64::consts::TAU * (l * (k % 100)) as f64 / 100.0 + l as f64).cos())
+                .sum::<f64>()
+                / 10.0;
+            v += (u - 0.5 * v) * 0.1;
+            x += v * 1e-3;
+            csv.push_str(&format!("{:e},{u:e},{x:e}\n", k as f64 * 1e-3));
+        }
+        std::fs::write(dir.join(RECORDING_CSV), csv).unwrap();
+        std::fs::write(
+            dir.join("recording.json"),
+            r#"{"sample_rate_hz": 1000, "excitation": {"kind": "multisine", "period_samples": 100, "periods": 3, "transient_periods": 1}}"#,
+        )
+        .unwrap();
+    }
+
+    /// Issue 16 item 2: the daemon's diagnosis had no time cap; at the cap it answers an
+    /// error marked `time_cap.capped` instead of waiting.
+    #[test]
+    fn the_diagnosis_stops_waiting_at_its_cap() {
+        let tmp = tempfile::tempdir().unwrap();
+        let dirs: Vec<_> = (1..=2)
+            .map(|n| tmp.path().join(format!("level{n}")))
+            .collect();
+        for d in &dirs {
+            write_level(d);
+        }
+        let request = serde_json::from_str(
+            r#"{"excitation":"multisine","band_hz":[2,300],"amplitude_nm":0.5,"periods":3,"duration_s":5}"#,
+        )
+        .unwrap();
+        let status = SweepStatus {
+            id: "20261126T180000Z-000001".into(),
+            axis: "a1".into(),
+            state: SweepState::Running,
+            reason: None,
+            started_unix_s: 0.0,
+            ended_unix_s: None,
+            periods_done: 0,
+            samples: 0,
+            request,
+            has_result: false,
+            level: None,
+            has_diagnosis: false,
+        };
+        let hub = SweepHub::new(status, AbortSignal::default());
+        let d = run_diagnosis(&hub, "t", &dirs, 1, [0.1, 0.2], Duration::ZERO);
+        assert_eq!(d["time_cap"]["capped"], true, "{d}");
+        assert!(d["error"].as_str().unwrap().contains("time cap"), "{d}");
     }
 }

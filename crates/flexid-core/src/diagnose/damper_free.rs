@@ -23,7 +23,7 @@
 
 use super::lti::LinExt;
 use super::Data;
-use crate::analysis::{analyze_estimate, estimate_frf, AnalysisOptions, EstimatedFrf};
+use crate::analysis::{analyze_estimate, estimate_frf, EstimatedFrf};
 use crate::frf::{Frf, FrfKind};
 use num_complex::Complex64;
 use std::f64::consts::PI;
@@ -130,16 +130,7 @@ pub fn start(data: &Data, n: usize, band: Option<[f64; 2]>) -> Option<LinExt> {
         frf: without_ground_damper(&est.frf, damping.b_nms_per_rad, level.io_delay),
         ..est
     };
-    let opts = AnalysisOptions {
-        masses: Some(n),
-        band_hz: band,
-        fit: crate::identify::fit::FitOptions {
-            starts: 8,
-            threads: 1,
-            ..AnalysisOptions::default().fit
-        },
-        ..AnalysisOptions::default()
-    };
+    let opts = super::nominal_analysis(n, band);
     let chain = analyze_estimate(&level.rec, corrected, &opts)
         .ok()?
         .fit?

@@ -434,12 +434,10 @@ impl StageClock {
     }
 }
 
-fn nominal_start(
-    rec: &Recording,
-    masses: usize,
-    band: Option<[f64; 2]>,
-) -> Option<crate::model::Chain> {
-    let opts = AnalysisOptions {
+/// The identification behind a nominal start: `masses` bodies in `band`, 8 starts on one
+/// thread (the diagnosis runs on one core).
+fn nominal_analysis(masses: usize, band: Option<[f64; 2]>) -> AnalysisOptions {
+    AnalysisOptions {
         masses: Some(masses),
         band_hz: band,
         fit: crate::identify::fit::FitOptions {
@@ -448,7 +446,15 @@ fn nominal_start(
             ..AnalysisOptions::default().fit
         },
         ..AnalysisOptions::default()
-    };
+    }
+}
+
+fn nominal_start(
+    rec: &Recording,
+    masses: usize,
+    band: Option<[f64; 2]>,
+) -> Option<crate::model::Chain> {
+    let opts = nominal_analysis(masses, band);
     match analyze(rec, &opts) {
         Ok(a) => a.fit.map(|f| f.chain),
         Err(_) if masses == 1 => {

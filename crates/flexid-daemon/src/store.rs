@@ -444,6 +444,29 @@ fn sync_dir(dir: &Path) -> Result<(), StoreError> {
         .map_err(io_err(dir))
 }
 
+/// A running multisine sweep on axis `a1` with `periods` periods, nothing done yet (tests).
+#[cfg(test)]
+pub(crate) fn running_status(id: &str, periods: usize) -> SweepStatus {
+    let request: SweepRequest = serde_json::from_str(&format!(
+        r#"{{"excitation":"multisine","band_hz":[2,300],"amplitude_nm":0.5,"periods":{periods},"duration_s":5}}"#
+    ))
+    .unwrap();
+    SweepStatus {
+        id: id.into(),
+        axis: "a1".into(),
+        state: SweepState::Running,
+        reason: None,
+        started_unix_s: 0.0,
+        ended_unix_s: None,
+        periods_done: 0,
+        samples: 0,
+        request,
+        has_result: false,
+        level: None,
+        has_diagnosis: false,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -462,24 +485,7 @@ mod tests {
     fn a_recovered_sweep_counts_the_whole_periods_on_disk() {
         let d = tempfile::tempdir().unwrap();
         let store = Store::open(d.path()).unwrap();
-        let request: SweepRequest = serde_json::from_str(
-            r#"{"excitation":"multisine","band_hz":[2,300],"amplitude_nm":0.5,"periods":4,"duration_s":5}"#,
-        )
-        .unwrap();
-        let status = SweepStatus {
-            id: "20261126T180000Z-000001".into(),
-            axis: "a1".into(),
-            state: SweepState::Running,
-            reason: None,
-            started_unix_s: 0.0,
-            ended_unix_s: None,
-            periods_done: 0,
-            samples: 0,
-            request,
-            has_result: false,
-            level: None,
-            has_diagnosis: false,
-        };
+        let status = running_status("20261126T180000Z-000001", 4);
         let sidecar: Sidecar = serde_json::from_str(
             r#"{"sample_rate_hz": 100.0, "excitation": {"kind": "multisine", "period_samples": 10,
                 "periods": 4, "transient_periods": 1, "excited_lines": [1, 2]}}"#,
@@ -529,24 +535,7 @@ mod tests {
 
         let d = tempfile::tempdir().unwrap();
         let store = Store::open(d.path()).unwrap();
-        let request: SweepRequest = serde_json::from_str(
-            r#"{"excitation":"multisine","band_hz":[2,300],"amplitude_nm":0.5,"periods":4,"duration_s":5}"#,
-        )
-        .unwrap();
-        let status = SweepStatus {
-            id: "20261126T180000Z-000002".into(),
-            axis: "a1".into(),
-            state: SweepState::Running,
-            reason: None,
-            started_unix_s: 0.0,
-            ended_unix_s: None,
-            periods_done: 0,
-            samples: 0,
-            request,
-            has_result: false,
-            level: None,
-            has_diagnosis: false,
-        };
+        let status = running_status("20261126T180000Z-000002", 4);
         let mut files = store.begin(&status, &Sidecar::default()).unwrap();
         let block = SampleBlock {
             first_sample: 0,

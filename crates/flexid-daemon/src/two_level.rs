@@ -369,7 +369,6 @@ fn drain(events: &mut mpsc::Receiver<SweepEvent>) {
 mod tests {
     use super::*;
     use crate::backend::AbortSignal;
-    use crate::store::SweepStatus;
 
     /// A periodic recording (1 kHz, 100-sample period, 1 + 3 periods) of a damped body.
     fn write_level(dir: &std::path::Path) {
@@ -404,24 +403,7 @@ mod tests {
         for d in &dirs {
             write_level(d);
         }
-        let request = serde_json::from_str(
-            r#"{"excitation":"multisine","band_hz":[2,300],"amplitude_nm":0.5,"periods":3,"duration_s":5}"#,
-        )
-        .unwrap();
-        let status = SweepStatus {
-            id: "20261126T180000Z-000001".into(),
-            axis: "a1".into(),
-            state: SweepState::Running,
-            reason: None,
-            started_unix_s: 0.0,
-            ended_unix_s: None,
-            periods_done: 0,
-            samples: 0,
-            request,
-            has_result: false,
-            level: None,
-            has_diagnosis: false,
-        };
+        let status = crate::store::running_status("20261126T180000Z-000001", 3);
         let hub = SweepHub::new(status, AbortSignal::default());
         let d = run_diagnosis(&hub, "t", &dirs, 1, [0.1, 0.2], Duration::ZERO);
         assert_eq!(d["time_cap"]["capped"], true, "{d}");

@@ -77,36 +77,98 @@ pub fn estimate_frf(
         MotionSignal::Velocity => (signal.to_vec(), FrfKind::Velocity),
         MotionSignal::Acceleration => (signal.to_vec(), FrfKind::Other),
     };
-    let u = &rec.torque_cmd_nm;
     // an encoder's counts: their repeating error is part of each line's variance
     let quantum = match motion {
         MotionSignal::Position | MotionSignal::Velocity => frf::quantisation::grid_step(signal),
         MotionSignal::Acceleration => None,
     };
-    let grid_words = quantum.map_or(String::new(), |q| {
+    let response = Response {
+        y: &y,
+        kind,
+        quantum: quantum.map(|q| (q, signal)),
+        words: motion_words(motion),
+    };
+    let r = estimate_response(rec, &response, band_hz)?;
+    Ok(EstimatedFrf {
+        frf: r.frf,
+        nonexcited: r.nonexcited,
+        method: r.method,
+        motion,
+        averages: r.averages,
+        choices: r.choices,
+    })
+}
+
+/// The drive's torque reading against its command, `T_act / T_cmd`, on the excited lines
+/// (the same estimator as [`estimate_frf`] picks, kind [`FrfKind::Other`]: nothing
+/// differenced, no ramp removed); `None` when the recording has no `torque_actual_nm`.
+pub fn estimate_torque_path(
+    rec: &Recording,
+    band_hz: Option<[f64; 2]>,
+) -> Option<Result<ResponseEstimate, AnalysisError>> {
+    let y = rec.torque_actual_nm.as_deref()?;
+    let response = Response {
+        y,
+        kind: FrfKind::Other,
+        quantum: None,
+        words: "; the drive's torque reading (torque_actual_nm) as the response",
+    };
+    Some(estimate_response(rec, &response, band_hz))
+}
+
+/// A response signal to estimate against the torque command.
+struct Response<'a> {
+    y: &'a [f64],
+    kind: FrfKind,
+    /// The grid step of the signal the response comes from, and that signal: its
+    /// repeating count error is part of each line's variance.
+    quantum: Option<(f64, &'a [f64])>,
+    /// How the response entered the estimate, a clause of the choices sentence.
+    words: &'static str,
+}
+
+/// A response's estimate: [`EstimatedFrf`] without the motion signal.
+#[derive(Debug, Clone)]
+pub struct ResponseEstimate {
+    pub frf: Frf,
+    pub nonexcited: Option<NonExcitedLevels>,
+    pub method: &'static str,
+    pub averages: usize,
+    pub choices: String,
+}
+
+/// Estimate the response `resp.y` to the torque command: the estimator chosen by the
+/// recording's excitation (see [`estimate_frf`]), limited to its band or `band_hz`.
+fn estimate_response(
+    rec: &Recording,
+    resp: &Response,
+    band_hz: Option<[f64; 2]>,
+) -> Result<ResponseEstimate, AnalysisError> {
+    let fs = rec.sample_rate_hz;
+    let (u, y, kind) = (&rec.torque_cmd_nm, resp.y, resp.kind);
+    let grid_words = resp.quantum.map_or(String::new(), |(q, _)| {
         format!("; the motion lies on a grid of {q:.4e} (an encoder count), whose error, as far as it repeats from period to period, is added to each line's variance")
     });
     let periodic = periodic_excitation(rec);
     let stepped = stepped_blocks(rec);
     let mut out = if let Some(blocks) = stepped {
-        let frf = frf::estimate_stepped(blocks, u, &y, fs, kind, quantum.map(|q| (q, signal)))?;
+        let frf = frf::estimate_stepped(blocks, u, y, fs, kind, resp.quantum)?;
         let periods = blocks.iter().map(|b| b.periods).min().unwrap_or(0);
         let choices = format!(
             "FRF: stepped sine, each of the {} dwell blocks its own periodic experiment (its settle periods dropped, at least {periods} steady periods averaged, no window), one line per block, line variance from the period-to-period scatter{grid_words}{}",
             blocks.len(),
-            motion_words(motion)
+            resp.words
         );
-        EstimatedFrf {
+        ResponseEstimate {
             frf,
             nonexcited: None,
             averages: periods,
             method: "stepped",
-            motion,
             choices,
         }
     } else if let Some(info) = single_sweep(rec) {
         // the user's band first, else the sweep's own
-        let frf = frf::estimate_lpm(u, &y, fs, kind, band_hz.or(info.band_hz))?;
+        let frf = frf::estimate_lpm(u, y, fs, kind, band_hz.or(info.band_hz))?;
         let q = frf::lpm_dof();
         let width = 2 * frf::lpm::HALF_WIDTH + 1;
         let choices = format!(
@@ -116,15 +178,14 @@ pub fn estimate_frf(
             fs / u.len() as f64,
             frf::lpm::DEGREE,
             width as f64 * fs / u.len() as f64,
-            motion_words(motion)
+            resp.words
         );
-        EstimatedFrf {
+        ResponseEstimate {
             frf,
             nonexcited: None,
             // a variance with q complex dof is that of q + 1 averages
             averages: q + 1,
             method: "lpm",
-            motion,
             choices,
         }
     } else if let Some(info) = periodic {
@@ -137,24 +198,25 @@ pub fn estimate_frf(
             }
             .into());
         }
-        let repeating = quantum.and_then(|q| repeating_per_line(q, signal, info));
+        let repeating = resp
+            .quantum
+            .and_then(|(q, signal)| repeating_per_line(q, signal, info));
         let mut est =
             frf::PeriodicEstimator::from_info(info, fs, kind)?.with_quantum_spectrum(repeating);
-        est.push(u, &y)?;
+        est.push(u, y)?;
         let frf = est.estimate()?;
         let choices = format!(
             "FRF: periodic estimator, {} steady periods of {} samples averaged ({:.4} Hz lines, no window: the excitation is periodic), line variance from the period-to-period scatter{grid_words}{}",
             est.periods_done(),
             info.period_samples,
             fs / info.period_samples as f64,
-            motion_words(motion)
+            resp.words
         );
-        EstimatedFrf {
+        ResponseEstimate {
             nonexcited: est.nonexcited().ok(),
             averages: est.periods_done(),
             frf,
             method: "periodic",
-            motion,
             choices,
         }
     } else {
@@ -170,21 +232,20 @@ pub fn estimate_frf(
             });
         }
         let mut w = frf::WelchH1::new(nperseg, nperseg / 2, frf::Window::Hann, fs)?.with_kind(kind);
-        w.push(u, &y)?;
+        w.push(u, y)?;
         let choices = format!(
             "FRF: Welch H1 (the excitation is not periodic), {n} samples ({:.1} s) in {} Hann-windowed segments of {nperseg} samples ({:.4} Hz lines), half overlapping ({:.1} independent averages); the segment grows with the record to keep at least 16 segments, up to {MAX_SEGMENT} samples; each segment's mean removed (a velocity offset); line variance from the coherence and the averages{}",
             n as f64 / fs,
             w.segments(),
             fs / nperseg as f64,
             w.effective_averages(),
-            motion_words(motion)
+            resp.words
         );
-        EstimatedFrf {
+        ResponseEstimate {
             frf: w.estimate()?,
             nonexcited: None,
             averages: w.segments(),
             method: "welch_h1",
-            motion,
             choices,
         }
     };

@@ -10,7 +10,9 @@ mod pipeline;
 mod summary;
 mod time_cap;
 
-pub use estimate::{estimate_frf, periodic_excitation, EstimatedFrf};
+pub use estimate::{
+    estimate_frf, estimate_torque_path, periodic_excitation, EstimatedFrf, ResponseEstimate,
+};
 pub use json::to_json;
 pub use pipeline::{analyze, analyze_estimate, Analysis, AnalysisError, AnalysisOptions};
 pub use summary::{Coupling, ModelSummary};

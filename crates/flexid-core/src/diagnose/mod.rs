@@ -25,6 +25,7 @@ pub mod select;
 pub mod simplex;
 #[cfg(test)]
 mod tests_support;
+pub mod torque_path;
 pub mod trajectory;
 
 use crate::analysis::{analyze, estimate_frf, AnalysisOptions};
@@ -141,6 +142,9 @@ pub struct Data {
     pub full_targets: Vec<Target>,
     /// What noise alone gives as reduced chi² (mean and significance threshold).
     pub noise: noise::NoiseChi2,
+    /// The drive's torque reading against its command, where every recording has one
+    /// ([`torque_path`]): on which side of the torque a lag sits.
+    pub torque: Option<torque_path::TorquePath>,
 }
 
 impl Data {
@@ -251,12 +255,7 @@ pub fn prepare(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Data, Diagn
         if kind == FrfKind::Other {
             return Err(DiagnoseError::Kind(i));
         }
-        let keep: Vec<usize> = (0..e.frf.len())
-            .filter(|&k| {
-                let v = e.frf.var[k];
-                v.is_finite() && v > 0.0 && e.frf.h[k].norm() > 0.0
-            })
-            .collect();
+        let keep = e.frf.usable_lines();
         if keep.is_empty() {
             return Err(DiagnoseError::NoUsableLines {
                 index: i,
@@ -294,6 +293,7 @@ pub fn prepare(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Data, Diagn
     );
     Ok(Data {
         noise,
+        torque: torque_path::TorquePath::measure(recs, opts.band_hz),
         levels,
         fs,
         kind,
@@ -652,6 +652,10 @@ fn diagnose_from(
     );
     let (mut fits, mut notes) = (candidates.fits, candidates.notes);
     notes.insert(0, viscous.note.clone());
+    if let Some(tp) = &data.torque {
+        notes.push(tp.describe());
+        torque_path::drop_contradicted(tp, data.levels[0].io_delay, &mut fits, &mut notes);
+    }
     keep_better_gravity(&mut fits, ground_as_gravity);
     gravity_beyond_viscous(data, &mut fits, &viscous, &mut notes);
 
@@ -755,6 +759,9 @@ fn fit_next(
         if wanted(Effect::HardeningStiffness) {
             fits.extend(effects::hardening::fit(data, base));
         }
+    }
+    if let Some(tp) = &data.torque {
+        torque_path::drop_contradicted(tp, data.levels[0].io_delay, &mut fits, &mut Vec::new());
     }
     fits
 }

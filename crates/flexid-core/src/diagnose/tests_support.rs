@@ -63,6 +63,7 @@ pub fn exact_data(lin: &LinExt, fs: f64, band_hz: &[f64; 2], lines: usize) -> (D
         spring_substeps: 1,
         targets: vec![target.clone()],
         full_targets: vec![target],
+        torque: None,
     };
     (data, lin.clone())
 }

@@ -51,6 +51,17 @@ impl Frf {
         self.freq_hz.is_empty()
     }
 
+    /// Indices of the lines a weighted fit can use: a finite, positive variance and a
+    /// response that is not zero.
+    pub fn usable_lines(&self) -> Vec<usize> {
+        (0..self.len())
+            .filter(|&k| {
+                let v = self.var[k];
+                v.is_finite() && v > 0.0 && self.h[k].norm() > 0.0
+            })
+            .collect()
+    }
+
     /// Standard deviation of `h[i]` relative to its magnitude (a dimensionless number; 0.01
     /// means about 0.086 dB / 0.57 degrees of one-sigma scatter).
     pub fn relative_std(&self, i: usize) -> f64 {

@@ -10,9 +10,19 @@ use crate::diagnose::Effect;
 pub fn fit(data: &Data, nominal: &LinExt) -> Option<EffectFit> {
     let ts = 1.0 / data.fs;
     // a grid of a quarter sample up to 4 samples: the phase wraps, so LM alone can lock
-    // onto a wrong branch
-    let starts: Vec<LinExt> = (0..=16)
-        .map(|i| i as f64 * 0.25)
+    // onto a wrong branch; where the drive's torque reading shows the delay's whole
+    // samples ([`crate::diagnose::torque_path::TorquePath::whole_samples_beyond`]), the quarters of that sample
+    let io_delay = data.levels.first().map_or(0, |l| l.io_delay);
+    let grid: Vec<f64> = match data
+        .torque
+        .as_ref()
+        .and_then(|t| t.whole_samples_beyond(io_delay))
+    {
+        Some(m) => (0..4).map(|i| m as f64 + i as f64 * 0.25).collect(),
+        None => (0..=16).map(|i| i as f64 * 0.25).collect(),
+    };
+    let starts: Vec<LinExt> = grid
+        .into_iter()
         .map(|x| {
             let mut s = nominal.clone();
             s.delay_s = x * ts;

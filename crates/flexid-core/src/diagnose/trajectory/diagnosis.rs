@@ -261,6 +261,7 @@ pub fn diagnose(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Diagnosis,
             mean: 1.0,
             threshold: t.within_noise_threshold,
         },
+        torque: None,
     };
     let mut notes = notes(&t, recs, opts);
     if t.kept == Kept::Rigid && !t.coulomb_named {

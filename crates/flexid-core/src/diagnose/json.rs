@@ -75,6 +75,7 @@ pub fn to_json(d: &Diagnosis) -> Value {
             "damping_nms_per_rad": chain.damping_nms_per_rad,
         },
         "trajectory": d.trajectory.as_ref().map(trajectory_json),
+        "torque_path": d.data.torque.as_ref().map(torque_path_json),
         "notes": d.notes,
         "seconds": num(d.seconds),
     })
@@ -146,6 +147,33 @@ pub fn trajectory_json(t: &TrajectoryFit) -> Value {
 
 /// The most significant run of lines of a localised scan ([`super::scan`]): where, how
 /// many lines, the probability of one run under noise alone and the runs tried.
+/// The drive's torque reading against its command ([`super::torque_path`]).
+fn torque_path_json(t: &super::torque_path::TorquePath) -> Value {
+    use super::torque_path::Shape;
+    let lines = t.lines().max(1) as f64;
+    let fit = |f: &super::torque_path::PathFit| {
+        json!({
+            "loop_order": f.lp.map(|l| l.order),
+            "loop_bandwidth_hz": f.lp.map(|l| num(l.bandwidth_hz)),
+            "loop_damping_ratio": f.lp.filter(|l| l.order == 2).map(|l| num(l.zeta)),
+            "command_delay_samples": num(f.delay_s * t.fs),
+            "gain": num(f.gain),
+            "reduced_chi2": num(f.chi2 / lines),
+        })
+    };
+    json!({
+        "shape": match t.shape {
+            Shape::Clean => "clean",
+            Shape::Loop => "current_loop",
+            Shape::Departs => "departs",
+        },
+        "lines": t.lines(),
+        "noise_threshold_reduced_chi2": num(t.noise.threshold),
+        "clean": fit(&t.clean),
+        "with_loop": fit(&t.with_loop),
+    })
+}
+
 fn located_json(w: super::Located) -> Value {
     json!({
         "level": w.pair.is_none().then_some(w.window.series),

@@ -184,7 +184,8 @@ impl TorquePath {
     /// Whether a candidate's claim about the torque path contradicts the reading, where
     /// the reading is understood (its shape [`Shape::Clean`] or [`Shape::Loop`]; a reading
     /// that departs from both says nothing against anyone):
-    /// - a current loop, when the reading is the delayed command within the noise;
+    /// - a current loop the reading would show beyond the noise, when the reading is the
+    ///   delayed command within the noise;
     /// - a delay of `delay_s` beyond the recording's `io_delay` whole samples, when the
     ///   reading is clean and shows another number of whole samples: the command read back
     ///   at `kT` is `u[k - 1 - m]` with `m = floor(io_delay + delay_s / T)`, so the reading's
@@ -198,13 +199,19 @@ impl TorquePath {
             return false;
         }
         let lin = &fit.lin;
-        if lin.current_loop.is_some() {
-            return true;
+        let ts = 1.0 / self.fs;
+        if let Some(lp) = &lin.current_loop {
+            // the loop after the whole samples the reading shows and the candidate's part
+            // of a sample: a loop far above the band reads back as the command itself
+            let part = (lin.delay_s.max(0.0) / ts).fract() * ts;
+            let (chi2, _) = self.chi2_gain(Some(lp), self.clean.delay_s + part);
+            if !self.within_noise(chi2) {
+                return true;
+            }
         }
         if lin.delay_s <= 0.0 {
             return false;
         }
-        let ts = 1.0 / self.fs;
         let sd = fit
             .params
             .iter()
@@ -646,6 +653,8 @@ mod tests {
         assert_eq!(tp.clean.delay_s, 0.0);
         assert!(!tp.contradicts(&candidate(None, 0.0, 0.0), 0));
         assert!(tp.contradicts(&candidate(Some(loop1(300.0)), 0.0, 0.0), 0));
+        // a loop far above the band is the command itself
+        assert!(!tp.contradicts(&candidate(Some(loop1(1e9)), 0.0, 0.0), 0));
         // a part of a sample does not show; whole samples do, within the candidate's reach
         assert!(!tp.contradicts(&candidate(None, 0.6 / fs, 0.01 / fs), 0));
         assert!(tp.contradicts(&candidate(None, 2.7 / fs, 0.01 / fs), 0));

@@ -341,8 +341,9 @@ fn bad_recordings_and_sidecars() {
     assert!(peak < 256 << 20, "a child used {} MB", peak >> 20);
 }
 
-/// Item 2: `flexid diagnose --max-seconds` returns the nominal chain at the cap, marked
-/// as capped (the option did not exist: a diagnosis could run for 15 minutes).
+/// Item 2: `flexid diagnose --max-seconds` returns the best result so far at the cap,
+/// marked as capped (the option did not exist: a diagnosis could run for 15 minutes);
+/// tests/diagnose_time_cap.rs checks what a capped diagnosis holds.
 #[test]
 fn diagnose_stops_at_its_time_cap_and_says_so() {
     let dir = tempfile::tempdir().unwrap();
@@ -392,7 +393,12 @@ fn diagnose_stops_at_its_time_cap_and_says_so() {
     let j: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.path().join("D.json")).unwrap()).unwrap();
     assert_eq!(j["time_cap"]["capped"], true, "{j}");
-    assert!(j["nominal"]["model"]["masses"].as_u64() == Some(3), "{j}");
+    // a cap this short passes before the nominal chain is begun (that chain is then
+    // identified on its own) or just after (a diagnosis of the nominal chain alone)
+    let masses = j["nominal"]["model"]["masses"]
+        .as_u64()
+        .or_else(|| j["masses"].as_u64());
+    assert_eq!(masses, Some(3), "{j}");
     for bad in ["0", "-1", "NaN", "1e300"] {
         let cap = format!("--max-seconds={bad}");
         let args: Vec<String> = ["diagnose", "REC.csv", "--masses", "3", cap.as_str()]

@@ -410,3 +410,76 @@ fn diagnose_stops_at_its_time_cap_and_says_so() {
         assert!(err.contains("--max-seconds"), "{err}");
     }
 }
+
+/// Item 2: "never panic on a short, long, constant, NaN-filled or truncated recording",
+/// each through `identify` and `diagnose` with its sidecar: the reader's refusals exit 2
+/// naming the file and what is wrong, and a long recording (1 + 300 periods) is analysed
+/// (exit 0). (Without a sidecar, 3 rows are the analysis's refusal: exit 1, "at least 256
+/// samples".)
+fn five_kinds() -> Vec<Case> {
+    let side = |periods: usize| {
+        let lines: Vec<String> = (1..=20).map(|l| l.to_string()).collect();
+        sidecar("100", &periods.to_string(), "1000", &lines.join(","))
+    };
+    let with_rows = |r: &[String]| format!("{HEADER}\n{}\n", r.join("\n"));
+    let retimed = |f: &dyn Fn(&[&str]) -> String| {
+        let r: Vec<String> = rows(4)
+            .iter()
+            .map(|r| f(&r.split(',').collect::<Vec<_>>()))
+            .collect();
+        with_rows(&r)
+    };
+    let short = with_rows(&rows(4)[..3]);
+    let long = csv(300);
+    let constant = retimed(&|f| format!("{},0.5,{}", f[0], f[2]));
+    let nan_filled = retimed(&|f| format!("{},NaN,NaN", f[0]));
+    let full = csv(4);
+    let truncated: String = full.chars().take(full.len() / 2 + 5).collect();
+    let kinds: [(&str, String, String, i32, &[&str]); 5] = [
+        ("short (3 rows)", short, side(4), 2, &["REC.csv", "3 rows"]),
+        ("long (1 + 300 periods)", long, side(300), 0, &[]),
+        (
+            "constant torque",
+            constant,
+            side(4),
+            2,
+            &["REC.csv", "every row"],
+        ),
+        (
+            "NaN-filled",
+            nan_filled,
+            side(4),
+            2,
+            &["REC.csv", "not finite"],
+        ),
+        (
+            "truncated mid-row",
+            truncated,
+            side(4),
+            2,
+            &["REC.csv", "line"],
+        ),
+    ];
+    let mut cases = Vec::new();
+    for (name, csv, json, code, says) in kinds {
+        for (cmd, args) in [
+            ("identify", &["identify", "REC.csv"][..]),
+            ("diagnose", &["diagnose", "REC.csv", "--masses", "2"][..]),
+        ] {
+            cases.push(
+                Case::new(format!("{cmd}: a {name} recording"), args, code, says)
+                    .file("REC.csv", csv.clone())
+                    .file("REC.json", json.clone().into_bytes()),
+            );
+        }
+    }
+    cases
+}
+
+#[test]
+fn short_long_constant_nan_filled_and_truncated_through_identify_and_diagnose() {
+    let cases = five_kinds();
+    assert_eq!(cases.len(), 10);
+    let failed = run_cases(&cases);
+    assert_all_held("the five kinds of recording", &failed);
+}

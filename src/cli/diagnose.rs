@@ -129,8 +129,8 @@ fn capped(
 ) -> Result<(), CliError> {
     let waited_s = t0.elapsed().as_secs_f64();
     let note = format!(
-        "TIME CAP: the diagnosis did not finish within {} s (--max-seconds); no verdict: \
-         the nominal {}-mass chain of {} instead",
+        "TIME CAP: {} s (--max-seconds) passed before the diagnosis's nominal chain was \
+         begun; no verdict: the nominal {}-mass chain of {} instead",
         a.max_seconds,
         a.masses,
         a.recordings[0].display()
@@ -155,6 +155,7 @@ fn capped(
                 "max_seconds": a.max_seconds,
                 "capped": true,
                 "elapsed_s": waited_s,
+                "not_tried": ["the diagnosis (the cap passed before its nominal chain was begun)"],
             },
             "verdict": null,
             "note": note,

@@ -456,7 +456,7 @@ impl TimeCap {
             self.max_seconds.unwrap_or(f64::INFINITY),
             self.elapsed_s,
             if self.not_tried.is_empty() {
-                "some starts of the nominal identification".to_string()
+                "some starts of the nominal identification or the mode search".to_string()
             } else {
                 self.not_tried.join(", ")
             }
@@ -747,7 +747,6 @@ fn diagnose_from(
         with_viscous,
         n,
         opts.band_hz,
-        &opts.budget,
         &mut candidates,
     );
     fit_amplitude_candidates(
@@ -858,7 +857,7 @@ fn fit_next(
         let here = effects::finish_linear(data, Effect::None, base.clone(), vec![], 0);
         let freqs = mode_start_freqs(data, &here);
         let starts = effects::mode::starts(&base.chain, &freqs, &[]);
-        fits.extend(effects::mode::fit(data, base, &starts));
+        fits.extend(effects::mode::fit(data, base, &starts, &opts.budget));
     }
     if wanted(Effect::CoulombFriction) {
         fits.extend(effects::friction::fit(data, base));
@@ -1131,12 +1130,12 @@ fn fit_extra_mode(
     with_viscous: Option<&LinExt>,
     n: usize,
     band: Option<[f64; 2]>,
-    budget: &FitBudget,
     c: &mut Candidates,
 ) -> Option<EffectFit> {
     if !c.steps.go(Effect::UnmodelledMode) {
         return None;
     }
+    let budget = &c.steps.budget.clone();
     let mut extra: Vec<crate::model::Chain> = Vec::new();
     if let Some(ch) = nominal_start(&data.levels[top_level(data)].rec, n + 1, band, budget) {
         extra.push(ch);
@@ -1144,14 +1143,14 @@ fn fit_extra_mode(
     // candidate frequencies of the extra mode: the most significant localised bands
     let freqs = mode_start_freqs(data, nominal);
     let mode_starts = effects::mode::starts(&nom_lin.chain, &freqs, &extra);
-    let mut mode_fit = effects::mode::fit(data, nom_lin, &mode_starts);
+    let mut mode_fit = effects::mode::fit(data, nom_lin, &mode_starts, budget);
     let with_viscous =
         with_viscous.filter(|_| c.steps.go("unmodelled_mode (with viscous friction)"));
     if let Some(with) = with_viscous {
         let here = effects::finish_linear(data, Effect::None, with.clone(), vec![], 0);
         let freqs = mode_start_freqs(data, &here);
         let starts = effects::mode::starts(&with.chain, &freqs, &extra);
-        if let Some(mut f) = effects::mode::fit_as(data, with, &starts, Lin::ModeViscous) {
+        if let Some(mut f) = effects::mode::fit_as(data, with, &starts, Lin::ModeViscous, budget) {
             let pen = (data.lines() as f64).ln();
             if mode_fit.as_ref().is_none_or(|m| m.chi2 - f.chi2 > pen) {
                 f.added += 1;

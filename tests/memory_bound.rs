@@ -8,12 +8,13 @@
 //! * the recording reader streams its rows and keeps each value as an `f64` column: at
 //!   most 8 bytes a value, times 2 for a `Vec`'s doubling; a value takes at least 2 bytes
 //!   of text (a digit and a comma), so the columns are at most 8 times the text in the
-//!   worst case (measured: 1.9 for rows as the simulator writes them, 4.7 for `t,1,0` rows);
+//!   worst case (measured: 0.6 to 1.7 for rows as the simulator writes them, 2.8 to 4.3 for
+//!   `t,1,0` rows);
 //! * a sidecar is refused before the rows when it is over 16 MiB, and what it claims is
 //!   checked against the rows' count, never allocated;
 //! * the MAT reader holds the file (1 x) and inflates a compressed element to at most 8
-//!   times its size (`import/mat5.rs`, `MAX_INFLATE_RATIO`; it was 2 GiB whatever the input:
-//!   a 1 MB zlib bomb took about 160 MB).
+//!   times its size (`import/mat5.rs`, `MAX_INFLATE_RATIO`; measured 9.0; it was 2 GiB
+//!   whatever the input: a 100 KB zlib bomb took 108 MB).
 //!
 //! The measured ratios are printed (to the process's stderr, past the harness's capture).
 //!

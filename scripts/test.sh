@@ -69,6 +69,12 @@ step "build (release, once for every stage)"
 cargo build --release --workspace --all-targets
 
 step "unit and integration tests"
+# The property tests over every reader of outside input also run for a bounded time in CI
+# (tests/bad_input/props.rs, fuzz_for_a_bounded_time: issue 16 asks for at least 60 s with
+# no finding); unset, as locally, that test says so and returns at once.
+if [ "${CI:-}" = "true" ]; then
+    export FLEXID_FUZZ_SECONDS=${FLEXID_FUZZ_SECONDS:-70}
+fi
 cargo test --release --workspace 2>&1 | tee target/test-output.txt
 # (cargo's own summary lines above are what CI reads)
 # The browser test's screenshot of the live Bode page (tests/daemon_web.rs):

@@ -13,7 +13,12 @@
 //! * [`targets`]: output files that are devices, FIFOs or links out of their folder;
 //! * [`props`]: property tests (proptest) over the recording reader, the sidecar parser,
 //!   the plant file, the configuration and every API request body, with a bounded number
-//!   of cases; inputs that once failed are kept in `tests/bad_input.proptest-regressions`.
+//!   of cases, and all of them for `FLEXID_FUZZ_SECONDS` (CI: 70 s); inputs that once
+//!   failed are kept in `tests/bad_input/props.proptest-regressions`.
+//!
+//! Each child's peak memory on bad inputs of 1, 8 and 32 MB against a small multiple of the
+//! input is `tests/memory_bound.rs` (a test binary of its own: a child's peak as the kernel
+//! counts it includes its parent's at the spawn, so the parent must stay small).
 //!
 //! `FLEXID_BIN_UNDER_TEST=/path/to/flexid` runs the command-line cases against another
 //! build (how the cases were seen to fail before their fixes).

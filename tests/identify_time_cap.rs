@@ -6,7 +6,7 @@
 //! "it stopped and said so".
 
 mod cli_common;
-use cli_common::{expect_ok, flexid};
+use cli_common::{all_effects_record, expect_ok, flexid};
 
 use serde_json::Value;
 use std::path::Path;
@@ -14,37 +14,7 @@ use std::path::Path;
 /// A multisine record of `plants/scara_all_effects.toml` (2 kHz, 0.5 Hz lines to 800 Hz,
 /// 1 + 4 periods).
 fn messy_record(dir: &Path) {
-    let plant = Path::new(env!("CARGO_MANIFEST_DIR")).join("plants/scara_all_effects.toml");
-    let exc = [
-        "excite",
-        "multisine",
-        "--fs",
-        "2000",
-        "--period-samples",
-        "4000",
-        "--band",
-        "0.5",
-        "800",
-        "--amplitude-exponent",
-        "1",
-        "--peak-nm",
-        "2",
-        "--periods",
-        "4",
-        "--out",
-        "EXC.csv",
-    ];
-    expect_ok(&flexid(&exc, dir), "excite");
-    let sim = [
-        "simulate",
-        "--plant",
-        plant.to_str().expect("utf-8 path"),
-        "--excitation",
-        "EXC.csv",
-        "--out",
-        "REC.csv",
-    ];
-    expect_ok(&flexid(&sim, dir), "simulate");
+    all_effects_record(dir, "2", "4", "REC.csv");
 }
 
 #[test]

@@ -2,7 +2,7 @@
 
 use super::CliError;
 use crate::analysis::{to_json as analysis_json, AnalysisOptions};
-use crate::diagnose::{diagnose as run_diagnosis, json::to_json, DiagnoseOptions};
+use crate::diagnose::{diagnose as run_diagnosis, json::to_json, DiagnoseError, DiagnoseOptions};
 use crate::identify::fit::{FitBudget, FitOptions};
 use crate::recording::Recording;
 use crate::recording::{read_recording, write_bytes_atomic};
@@ -10,8 +10,7 @@ use crate::report::diagnosis::render;
 use crate::report::render_report;
 use clap::Args;
 use std::path::PathBuf;
-use std::sync::{mpsc, Arc};
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 #[derive(Debug, Args)]
 pub struct DiagnoseArgs {
@@ -35,9 +34,13 @@ pub struct DiagnoseArgs {
     /// distortion is seen.
     #[arg(long)]
     pub all_effects: bool,
-    /// Time cap of the diagnosis [s]: after it, the nominal chain of the first recording
-    /// is identified (in at most a quarter of the cap more, at least 1 s) and returned
-    /// without a verdict, marked `TIME CAP` in the report and `time_cap.capped` in the JSON.
+    /// Time cap of the diagnosis [s], checked between its steps (the nominal fit's starts,
+    /// each candidate effect, each forward-selection step): once reached, no further
+    /// candidate is tried and the verdict is made from what was fitted, marked `TIME CAP`
+    /// in the report and `time_cap.capped` (with `not_tried`) in the JSON. When even the
+    /// nominal chain could not be begun in time, the nominal chain of the first recording
+    /// is identified instead (in at most a quarter of the cap more, at least 1 s) and
+    /// returned without a verdict.
     #[arg(long, default_value_t = DEFAULT_DIAGNOSE_MAX_SECONDS)]
     pub max_seconds: f64,
 }
@@ -80,41 +83,27 @@ pub fn diagnose(a: &DiagnoseArgs) -> Result<(), CliError> {
         recs.len(),
         a.masses
     );
+    let t0 = Instant::now();
     let opts = DiagnoseOptions {
         masses: a.masses,
         band_hz,
         force_nonlinear: a.all_effects,
+        // checked inside the diagnosis between its steps: at the cap it answers with what
+        // it fitted, marked capped (no thread is left running)
+        budget: FitBudget::with_cap_s(a.max_seconds),
         ..DiagnoseOptions::default()
     };
-    let t0 = Instant::now();
-    let cap = Duration::from_secs_f64(a.max_seconds);
-    let recs = Arc::new(recs);
-    let (tx, rx) = mpsc::channel();
-    {
-        let recs = recs.clone();
-        // a thread of its own: at the cap it is left behind and ends with the process
-        std::thread::Builder::new()
-            .name("diagnose".into())
-            .spawn(move || {
-                let _ = tx.send(run_diagnosis(&recs, &opts));
-            })
-            .map_err(|e| CliError::failed(format!("cannot start the diagnosis: {e}")))?;
-    }
-    let d = match rx.recv_timeout(cap) {
-        Ok(d) => d.map_err(|e| CliError::failed(e.to_string()))?,
-        Err(mpsc::RecvTimeoutError::Timeout) => return capped(a, &recs[0], band_hz, t0),
-        Err(mpsc::RecvTimeoutError::Disconnected) => {
-            return Err(CliError::failed("the diagnosis stopped without an answer"))
-        }
+    let d = match run_diagnosis(&recs, &opts) {
+        Ok(d) => d,
+        Err(DiagnoseError::CappedBeforeNominal { .. }) => return capped(a, &recs[0], band_hz, t0),
+        Err(e) => return Err(CliError::failed(e.to_string())),
     };
+    if d.time_cap.capped {
+        eprintln!("flexid diagnose: {}", d.time_cap.words());
+    }
     print!("{}", render(&d));
     if let Some(j) = &a.json {
-        let mut v = to_json(&d);
-        v["time_cap"] = serde_json::json!({
-            "max_seconds": a.max_seconds,
-            "capped": false,
-            "elapsed_s": t0.elapsed().as_secs_f64(),
-        });
+        let v = to_json(&d);
         let text = serde_json::to_string_pretty(&v).map_err(|e| CliError::failed(e.to_string()))?;
         write_bytes_atomic(j, text.as_bytes())
             .map_err(|e| CliError::write(format!("{}: {e}", j.display()), Some(&e)))?;
@@ -129,8 +118,8 @@ pub fn diagnose(a: &DiagnoseArgs) -> Result<(), CliError> {
     Ok(())
 }
 
-/// The diagnosis did not finish within `--max-seconds`: the best answer so far is the
-/// nominal chain of the first recording, identified under a cap of its own (a quarter of
+/// The diagnosis reached `--max-seconds` before its nominal chain was begun: the best
+/// answer is the nominal chain of the first recording, identified under a cap of its own (a quarter of
 /// the diagnosis's, at least 1 s), reported without a verdict and marked as capped.
 fn capped(
     a: &DiagnoseArgs,
@@ -140,8 +129,8 @@ fn capped(
 ) -> Result<(), CliError> {
     let waited_s = t0.elapsed().as_secs_f64();
     let note = format!(
-        "TIME CAP: the diagnosis did not finish within {} s (--max-seconds); no verdict: \
-         the nominal {}-mass chain of {} instead",
+        "TIME CAP: {} s (--max-seconds) passed before the diagnosis's nominal chain was \
+         begun; no verdict: the nominal {}-mass chain of {} instead",
         a.max_seconds,
         a.masses,
         a.recordings[0].display()
@@ -166,6 +155,7 @@ fn capped(
                 "max_seconds": a.max_seconds,
                 "capped": true,
                 "elapsed_s": waited_s,
+                "not_tried": ["the diagnosis (the cap passed before its nominal chain was begun)"],
             },
             "verdict": null,
             "note": note,

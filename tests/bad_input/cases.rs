@@ -11,7 +11,7 @@ pub const TIMEOUT: Duration = Duration::from_secs(60);
 /// One kind of bad input for the command line.
 pub struct Case {
     /// What is wrong, in a few words.
-    pub name: &'static str,
+    pub name: String,
     /// Files to write (name, bytes) before the run.
     pub files: Vec<(String, Vec<u8>)>,
     /// The arguments after `flexid`.
@@ -23,9 +23,9 @@ pub struct Case {
 }
 
 impl Case {
-    pub fn new(name: &'static str, args: &[&str], code: i32, says: &[&str]) -> Case {
+    pub fn new(name: impl Into<String>, args: &[&str], code: i32, says: &[&str]) -> Case {
         Case {
-            name,
+            name: name.into(),
             files: Vec::new(),
             args: args.iter().map(|s| s.to_string()).collect(),
             code,

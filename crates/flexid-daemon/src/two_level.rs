@@ -18,7 +18,8 @@ use super::job::{Job, TwoLevel};
 use super::store::{
     level_dir_name, SweepState, BODE_SVG, DIAGNOSIS_JSON, FRF_CSV, RECORDING_CSV, RESULT_JSON,
 };
-use flexid_core::diagnose::{diagnose, json::to_json, DiagnoseOptions};
+use flexid_core::diagnose::{diagnose, json::to_json, DiagnoseError, DiagnoseOptions};
+use flexid_core::identify::fit::FitBudget;
 use flexid_files::recording::{read_recording, Sidecar};
 use serde_json::{json, Value};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -248,11 +249,16 @@ pub(crate) fn run(mut job: Job, tl: TwoLevel) {
 /// Time cap of a two-level sweep's diagnosis (`flexid diagnose --max-seconds`'s default).
 pub const DIAGNOSIS_MAX: Duration = Duration::from_secs(300);
 
+/// How long past its cap the diagnosis's answer is waited for: the cap is checked between
+/// the diagnosis's steps, so the step under way (one candidate's fit) still ends.
+pub const DIAGNOSIS_GRACE: Duration = Duration::from_secs(60);
+
 /// The diagnosis of the two saved recordings (`dirs[i]/recording.csv`) on a thread of its
 /// own, with a `progress` event (`"phase": "diagnosis"`) about every second. Returns the
-/// report as JSON ([`flexid_core::diagnose::json::to_json`] plus `levels_nm`) or `{"error"}`;
-/// after `cap` an error marked `time_cap.capped` (the diagnosis has no budget hooks: its
-/// thread is left to finish on its own, and its answer is dropped).
+/// report as JSON ([`flexid_core::diagnose::json::to_json`] plus `levels_nm`) or `{"error"}`.
+/// The diagnosis runs under `cap` ([`DiagnoseOptions::budget`]): at the cap it answers with
+/// what it fitted, `time_cap.capped` set; an error marked so when the cap passed before
+/// its nominal chain was begun, or when no answer came [`DIAGNOSIS_GRACE`] after the cap.
 fn run_diagnosis(
     hub: &SweepHub,
     id: &str,
@@ -276,10 +282,14 @@ fn run_diagnosis(
         .spawn(move || {
             let opts = DiagnoseOptions {
                 masses,
+                budget: FitBudget::with_cap_s(cap.as_secs_f64()),
                 ..DiagnoseOptions::default()
             };
             let r = diagnose(&recs, &opts).map(|d| to_json(&d));
-            let _ = tx.send(r.map_err(|e| e.to_string()));
+            let _ = tx.send(r.map_err(|e| {
+                let capped = matches!(e, DiagnoseError::CappedBeforeNominal { .. });
+                (e.to_string(), capped)
+            }));
         });
     if let Err(e) = spawned {
         return json!({"error": format!("cannot start the diagnosis thread: {e}")});
@@ -289,19 +299,25 @@ fn run_diagnosis(
         json!({"sweep_id": id, "phase": "diagnosis", "elapsed_s": 0.0, "masses": masses})
             .to_string(),
     );
+    let capped = |error: String| {
+        json!({
+            "error": error,
+            "time_cap": {"max_seconds": cap.as_secs_f64(), "capped": true,
+                         "elapsed_s": t0.elapsed().as_secs_f64()},
+            "levels_nm": levels_nm,
+        })
+    };
     loop {
-        let left = cap.saturating_sub(t0.elapsed());
+        let left = (cap + DIAGNOSIS_GRACE).saturating_sub(t0.elapsed());
         if left.is_zero() {
             tracing::warn!(
                 "sweep {id}: the diagnosis did not finish within {} s (time cap)",
                 cap.as_secs_f64()
             );
-            return json!({
-                "error": format!("the diagnosis did not finish within {} s (time cap); no verdict", cap.as_secs_f64()),
-                "time_cap": {"max_seconds": cap.as_secs_f64(), "capped": true,
-                             "elapsed_s": t0.elapsed().as_secs_f64()},
-                "levels_nm": levels_nm,
-            });
+            return capped(format!(
+                "the diagnosis did not finish within {} s (time cap); no verdict",
+                cap.as_secs_f64()
+            ));
         }
         match rx.recv_timeout(left.min(Duration::from_secs(1))) {
             Ok(Ok(mut d)) => {
@@ -313,7 +329,11 @@ fn run_diagnosis(
                 );
                 return d;
             }
-            Ok(Err(e)) => return json!({"error": e, "levels_nm": levels_nm}),
+            Ok(Err((e, true))) => {
+                tracing::warn!("sweep {id}: {e}");
+                return capped(format!("{e}; no verdict"));
+            }
+            Ok(Err((e, false))) => return json!({"error": e, "levels_nm": levels_nm}),
             Err(std::sync::mpsc::RecvTimeoutError::Timeout) => hub.publish(
                 "progress",
                 json!({"sweep_id": id, "phase": "diagnosis",
@@ -392,8 +412,8 @@ mod tests {
         .unwrap();
     }
 
-    /// Issue 16 item 2: the daemon's diagnosis had no time cap; at the cap it answers an
-    /// error marked `time_cap.capped` instead of waiting.
+    /// Issue 16 item 2: the daemon's diagnosis had no time cap; a cap that passes before
+    /// the nominal chain is begun answers an error marked `time_cap.capped` at once.
     #[test]
     fn the_diagnosis_stops_waiting_at_its_cap() {
         let tmp = tempfile::tempdir().unwrap();

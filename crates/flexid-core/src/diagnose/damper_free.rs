@@ -118,7 +118,12 @@ pub fn without_ground_damper(frf: &Frf, b: f64, io_delay: u32) -> Frf {
 /// identified on the highest level's measurement with its ground damper taken out, and
 /// that damper. `None` when the lowest lines show no damper significantly above zero or
 /// the identification fails.
-pub fn start(data: &Data, n: usize, band: Option<[f64; 2]>) -> Option<LinExt> {
+pub fn start(
+    data: &Data,
+    n: usize,
+    band: Option<[f64; 2]>,
+    budget: &crate::identify::fit::FitBudget,
+) -> Option<LinExt> {
     let top = super::top_level(data);
     let level = &data.levels[top];
     let est: EstimatedFrf = estimate_frf(&level.rec, band).ok()?;
@@ -130,7 +135,7 @@ pub fn start(data: &Data, n: usize, band: Option<[f64; 2]>) -> Option<LinExt> {
         frf: without_ground_damper(&est.frf, damping.b_nms_per_rad, level.io_delay),
         ..est
     };
-    let opts = super::nominal_analysis(n, band);
+    let opts = super::nominal_analysis(n, band, budget);
     let chain = analyze_estimate(&level.rec, corrected, &opts)
         .ok()?
         .fit?

@@ -1,7 +1,8 @@
 //! The diagnosis as JSON (the contract: `verdict`, `effects[{effect, after_rms_db, score,
 //! params}]`, `gap.{before_rms_db, after_rms_db,
 //! bands[{lo_hz, hi_hz, excess_db}]}`, `ranking[{effect, after_rms_db, score}]`; on the
-//! trajectory path also `trajectory{...}`, [`trajectory_json`]).
+//! trajectory path also `trajectory{...}`, [`trajectory_json`]; always
+//! `time_cap{max_seconds, capped, elapsed_s, not_tried}`, [`time_cap_json`]).
 
 use super::trajectory::{idim::LsFit, Kept, TrajectoryFit};
 use super::Diagnosis;
@@ -16,6 +17,22 @@ fn num(x: f64) -> Value {
 }
 
 pub fn to_json(d: &Diagnosis) -> Value {
+    let mut v = body_json(d);
+    v["time_cap"] = time_cap_json(&d.time_cap);
+    v
+}
+
+/// `time_cap{max_seconds, capped, elapsed_s, not_tried}` (`max_seconds` null: no cap).
+pub fn time_cap_json(t: &super::TimeCap) -> Value {
+    json!({
+        "max_seconds": t.max_seconds.map(num),
+        "capped": t.capped,
+        "elapsed_s": num(t.elapsed_s),
+        "not_tried": t.not_tried,
+    })
+}
+
+fn body_json(d: &Diagnosis) -> Value {
     let g = &d.gap;
     let chain = &d.nominal.lin.chain;
     json!({

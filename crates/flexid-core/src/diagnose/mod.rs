@@ -30,6 +30,7 @@ pub mod trajectory;
 
 use crate::analysis::{analyze, estimate_frf, AnalysisOptions};
 use crate::frf::{FrfKind, NonExcitedLevels};
+use crate::identify::fit::FitBudget;
 use crate::recording::Recording;
 use distortion::{LevelChange, LevelDistortion};
 pub use effect::Effect;
@@ -73,6 +74,10 @@ pub enum DiagnoseError {
          torque are needed)"
     )]
     NoUsableLines { index: usize, averages: usize },
+    /// The time cap passed before the nominal chain could be fitted: nothing to diagnose
+    /// from (the command line then identifies the nominal chain on its own).
+    #[error("the time cap of {max_seconds} s passed after {elapsed_s:.2} s, before the nominal chain was fitted")]
+    CappedBeforeNominal { max_seconds: f64, elapsed_s: f64 },
 }
 
 /// Options of [`diagnose`].
@@ -94,6 +99,13 @@ pub struct DiagnoseOptions {
     /// `flexid_rt::clock::thread_cpu_ns`); `None` (the default) leaves the stages empty.
     /// The core reads no clock of its own: its results depend on the input only.
     pub cpu_clock: Option<fn() -> Option<u64>>,
+    /// The time cap (`flexid diagnose --max-seconds`; unlimited by default), checked
+    /// between the steps of the diagnosis: the nominal fit's starts, each candidate
+    /// effect's fit, each step of the forward selection, the mode search. Once it has
+    /// passed, no further candidate is tried and the diagnosis is made from what was
+    /// fitted, marked in [`Diagnosis::time_cap`]. The identifications behind the nominal
+    /// starts run under it too (each ends with the best of the starts it did).
+    pub budget: FitBudget,
 }
 
 impl Default for DiagnoseOptions {
@@ -106,6 +118,7 @@ impl Default for DiagnoseOptions {
             fit_lines: 300,
             force_nonlinear: false,
             cpu_clock: None,
+            budget: FitBudget::unlimited(),
         }
     }
 }
@@ -404,6 +417,78 @@ pub struct Diagnosis {
     /// then hold its verdict, gap (force residuals) and ranking, and no FRF (`data.levels`
     /// is empty). `None` on the frequency-domain path.
     pub trajectory: Option<trajectory::TrajectoryFit>,
+    /// Whether the time cap ([`DiagnoseOptions::budget`]) stopped the diagnosis, and what
+    /// it left out.
+    pub time_cap: TimeCap,
+}
+
+/// The time cap of a diagnosis: whether it was reached and which steps were not tried
+/// (candidate effects by name, `forward selection step N`, the damper-free start, ...).
+/// A capped diagnosis's verdict, ranking and gap come from the steps that were done.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct TimeCap {
+    /// The cap [s] (`None`: unlimited).
+    pub max_seconds: Option<f64>,
+    /// Whether the cap stopped anything (a step not tried, or a start of an identification
+    /// skipped).
+    pub capped: bool,
+    /// Seconds from the start of the diagnosis (of its budget) to its answer.
+    pub elapsed_s: f64,
+    /// The steps not tried because the cap had passed, in the order they were skipped.
+    pub not_tried: Vec<String>,
+}
+
+impl TimeCap {
+    /// The state of `budget` now, with the steps skipped.
+    pub fn of(budget: &FitBudget, not_tried: Vec<String>) -> Self {
+        let s = budget.snapshot();
+        TimeCap {
+            max_seconds: s.max_seconds,
+            capped: s.capped || !not_tried.is_empty(),
+            elapsed_s: s.elapsed_s,
+            not_tried,
+        }
+    }
+    /// What the cap left out, in words (for the notes and the report).
+    pub fn words(&self) -> String {
+        format!(
+            "TIME CAP: {} s reached after {:.2} s; the verdict is made from what was fitted (not tried: {})",
+            self.max_seconds.unwrap_or(f64::INFINITY),
+            self.elapsed_s,
+            if self.not_tried.is_empty() {
+                "some starts of the nominal identification or the mode search".to_string()
+            } else {
+                self.not_tried.join(", ")
+            }
+        )
+    }
+}
+
+/// The steps of one diagnosis under its time cap: [`Steps::go`] says whether a step may
+/// start, and remembers those that may not.
+struct Steps {
+    budget: FitBudget,
+    not_tried: Vec<String>,
+}
+
+impl Steps {
+    fn new(budget: &FitBudget) -> Self {
+        Steps {
+            budget: budget.clone(),
+            not_tried: Vec::new(),
+        }
+    }
+
+    /// Whether `step` may run: false (and `step` is listed as not tried) once the cap has
+    /// passed.
+    fn go(&mut self, step: impl std::fmt::Display) -> bool {
+        if self.budget.expired() {
+            self.not_tried.push(step.to_string());
+            false
+        } else {
+            true
+        }
+    }
 }
 
 /// Per-stage CPU time of the calling thread (see [`Diagnosis::stage_cpu_s`]), read from
@@ -435,14 +520,15 @@ impl StageClock {
 }
 
 /// The identification behind a nominal start: `masses` bodies in `band`, 8 starts on one
-/// thread (the diagnosis runs on one core).
-fn nominal_analysis(masses: usize, band: Option<[f64; 2]>) -> AnalysisOptions {
+/// thread (the diagnosis runs on one core), under the diagnosis's time cap.
+fn nominal_analysis(masses: usize, band: Option<[f64; 2]>, budget: &FitBudget) -> AnalysisOptions {
     AnalysisOptions {
         masses: Some(masses),
         band_hz: band,
         fit: crate::identify::fit::FitOptions {
             starts: 8,
             threads: 1,
+            budget: budget.clone(),
             ..AnalysisOptions::default().fit
         },
         ..AnalysisOptions::default()
@@ -453,8 +539,9 @@ fn nominal_start(
     rec: &Recording,
     masses: usize,
     band: Option<[f64; 2]>,
+    budget: &FitBudget,
 ) -> Option<crate::model::Chain> {
-    let opts = nominal_analysis(masses, band);
+    let opts = nominal_analysis(masses, band, budget);
     match analyze(rec, &opts) {
         Ok(a) => a.fit.map(|f| f.chain),
         Err(_) if masses == 1 => {
@@ -505,19 +592,28 @@ pub fn diagnose(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Diagnosis,
     let recs: Vec<Recording> = recs.iter().map(acceleration::as_position).collect();
     let data = prepare(&recs, opts)?;
     stage.lap("prepare");
+    let mut steps = Steps::new(&opts.budget);
+    if !steps.go("nominal chain") {
+        let s = opts.budget.snapshot();
+        return Err(DiagnoseError::CappedBeforeNominal {
+            max_seconds: s.max_seconds.unwrap_or(f64::INFINITY),
+            elapsed_s: s.elapsed_s,
+        });
+    }
     let n = opts.masses.max(1);
     let mut idents = Vec::new();
-    let nom_lin = fit_nominal(&data, n, opts.band_hz, &mut idents)?;
+    let nom_lin = fit_nominal(&data, n, opts.band_hz, &opts.budget, &mut idents)?;
     // the chain identified with the motor's damper to the ground taken out of the
     // measurement: a start the damper's fit cannot reach from a free chain bent to mimic it
     // (not needed when the free chain already leaves only noise)
-    let damper_free: Vec<LinExt> = if data.within_noise(data.chi2_of(&nom_lin)) {
-        Vec::new()
-    } else {
-        damper_free::start(&data, n, opts.band_hz)
-            .into_iter()
-            .collect()
-    };
+    let damper_free: Vec<LinExt> =
+        if data.within_noise(data.chi2_of(&nom_lin)) || !steps.go("damper-free nominal start") {
+            Vec::new()
+        } else {
+            damper_free::start(&data, n, opts.band_hz, &opts.budget)
+                .into_iter()
+                .collect()
+        };
     stage.lap("damper_free");
     // a candidate whose own parameter is not significant can be the nominal model fitted
     // better (its extension's path led the chain out of a basin the nominal fit stayed
@@ -526,7 +622,10 @@ pub fn diagnose(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Diagnosis,
     let pass = loop {
         let first = why.is_none();
         let fitted: Vec<LinExt> = damper_free.iter().chain(&viscous_start).cloned().collect();
-        match diagnose_from(&data, &start, &fitted, &idents, opts, &mut stage, first) {
+        let renominate = first && !opts.budget.expired();
+        match diagnose_from(
+            &data, &start, &fitted, &idents, opts, &mut stage, &mut steps, renominate,
+        ) {
             Ok(mut pass) => {
                 pass.notes.splice(0..0, why);
                 break pass;
@@ -539,7 +638,12 @@ pub fn diagnose(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Diagnosis,
             }
         }
     };
-    Ok(pass.into_diagnosis(n, data, t0.elapsed().as_secs_f64(), stage.stages))
+    let mut d = pass.into_diagnosis(n, data, t0.elapsed().as_secs_f64(), stage.stages);
+    d.time_cap = TimeCap::of(&opts.budget, steps.not_tried);
+    if d.time_cap.capped {
+        d.notes.push(d.time_cap.words());
+    }
+    Ok(d)
 }
 
 /// A better nominal model found by the linear candidates ([`renominal::better_nominal`]),
@@ -583,6 +687,7 @@ impl Pass {
             seconds,
             stage_cpu_s,
             trajectory: None,
+            time_cap: TimeCap::default(),
         }
     }
 }
@@ -599,6 +704,7 @@ fn diagnose_from(
     idents: &[crate::model::Chain],
     opts: &DiagnoseOptions,
     stage: &mut StageClock,
+    steps: &mut Steps,
     renominate: bool,
 ) -> Result<Pass, Renominal> {
     let n = opts.masses.max(1);
@@ -611,7 +717,7 @@ fn diagnose_from(
     let residual = residual_kind(data, &nominal);
     stage.lap("residual");
 
-    let mut candidates = Candidates::new(stage);
+    let mut candidates = Candidates::new(stage, steps);
     fit_linear_candidates(data, &nom_lin, idents, &mut candidates);
     if let (false, Some((with, _))) = (viscous.significant, &viscous.with_viscous) {
         // viscous friction not significant on the nominal chain alone (a large gap
@@ -619,7 +725,7 @@ fn diagnose_from(
         // damping counted as one more parameter
         fit_linear_candidates_with_viscous(data, with, &mut candidates);
     }
-    if renominate {
+    if renominate && !opts.budget.expired() {
         if let Some((better, from, chi2)) =
             renominal::better_nominal(data, &nominal, &candidates.fits)
         {
@@ -650,7 +756,7 @@ fn diagnose_from(
         opts.force_nonlinear,
         &mut candidates,
     );
-    let (mut fits, mut notes) = (candidates.fits, candidates.notes);
+    let (mut fits, mut notes, steps) = (candidates.fits, candidates.notes, candidates.steps);
     notes.insert(0, viscous.note.clone());
     if let Some(tp) = &data.torque {
         notes.push(tp.describe());
@@ -670,12 +776,15 @@ fn diagnose_from(
         .collect();
     let steps = match first {
         Some(i) => {
-            let (steps, more) =
+            let (chosen, more) =
                 select::forward(data, nominal.chi2, fits[i].clone(), |d, base, named| {
-                    fit_next(d, base, named, &marginal, opts, n)
+                    if !steps.go(format!("forward selection step {}", named.len() + 1)) {
+                        return Vec::new();
+                    }
+                    fit_next(d, base, named, &marginal, opts, n, steps)
                 });
             notes.extend(more);
-            steps
+            chosen
         }
         None => Vec::new(),
     };
@@ -730,8 +839,14 @@ fn fit_next(
     screened: &[Effect],
     opts: &DiagnoseOptions,
     n: usize,
+    steps: &mut Steps,
 ) -> Vec<EffectFit> {
-    let wanted = |e: Effect| !named.contains(&e) && (opts.force_nonlinear || screened.contains(&e));
+    let step = named.len() + 1;
+    let mut wanted = |e: Effect| {
+        !named.contains(&e)
+            && (opts.force_nonlinear || screened.contains(&e))
+            && steps.go(format_args!("{e} (forward selection step {step})"))
+    };
     let mut fits: Vec<EffectFit> = Vec::new();
     if wanted(Effect::TimeDelay) {
         fits.extend(effects::delay::fit(data, base));
@@ -746,7 +861,7 @@ fn fit_next(
         let here = effects::finish_linear(data, Effect::None, base.clone(), vec![], 0);
         let freqs = mode_start_freqs(data, &here);
         let starts = effects::mode::starts(&base.chain, &freqs, &[]);
-        fits.extend(effects::mode::fit(data, base, &starts));
+        fits.extend(effects::mode::fit(data, base, &starts, &opts.budget));
     }
     if wanted(Effect::CoulombFriction) {
         fits.extend(effects::friction::fit(data, base));
@@ -810,6 +925,7 @@ fn fit_nominal(
     data: &Data,
     n: usize,
     band: Option<[f64; 2]>,
+    budget: &FitBudget,
     starts: &mut Vec<crate::model::Chain>,
 ) -> Result<LinExt, DiagnoseError> {
     let mut order: Vec<usize> = (0..data.levels.len()).collect();
@@ -831,7 +947,12 @@ fn fit_nominal(
     };
     let mut best: Option<(LinExt, f64)> = None;
     for &i in &order {
-        let Some(start) = nominal_start(&data.levels[i].rec, n, band) else {
+        if best.is_some() && budget.expired() {
+            // the time cap: the best joint fit so far is the nominal model
+            budget.skip_order();
+            break;
+        }
+        let Some(start) = nominal_start(&data.levels[i].rec, n, band, budget) else {
             continue;
         };
         starts.push(start.clone());
@@ -856,7 +977,7 @@ fn fit_nominal(
     let start = n
         .checked_sub(1)
         .filter(|&m| m > 0)
-        .and_then(|m| nominal_start(&data.levels[top].rec, m, band))
+        .and_then(|m| nominal_start(&data.levels[top].rec, m, band, budget))
         .and_then(|c| {
             effects::mode::starts(&c, &[0.5 * data.f_max()], &[])
                 .into_iter()
@@ -873,15 +994,26 @@ struct Candidates<'a> {
     notes: Vec<String>,
     clock: std::time::Instant,
     stage: &'a mut StageClock,
+    /// The time cap: a candidate is fitted only while it has not passed.
+    steps: &'a mut Steps,
 }
 
 impl<'a> Candidates<'a> {
-    fn new(stage: &'a mut StageClock) -> Self {
+    fn new(stage: &'a mut StageClock, steps: &'a mut Steps) -> Self {
         Candidates {
             fits: Vec::new(),
             notes: Vec::new(),
             clock: std::time::Instant::now(),
             stage,
+            steps,
+        }
+    }
+
+    /// Fit `effect` with `fit` and record it, unless the time cap has passed (then it is
+    /// listed as not tried).
+    fn fit(&mut self, effect: Effect, fit: impl FnOnce() -> Option<EffectFit>) {
+        if self.steps.go(effect) {
+            self.push(fit(), effect);
         }
     }
 
@@ -924,15 +1056,13 @@ fn fit_linear_candidates(
     idents: &[crate::model::Chain],
     c: &mut Candidates,
 ) {
-    c.push(effects::delay::fit(data, nom_lin), Effect::TimeDelay);
-    c.push(
-        effects::current_loop::fit(data, nom_lin),
-        Effect::CurrentLoop,
-    );
-    c.push(
-        effects::gravity::fit(data, nom_lin, idents),
-        Effect::Gravity,
-    );
+    c.fit(Effect::TimeDelay, || effects::delay::fit(data, nom_lin));
+    c.fit(Effect::CurrentLoop, || {
+        effects::current_loop::fit(data, nom_lin)
+    });
+    c.fit(Effect::Gravity, || {
+        effects::gravity::fit(data, nom_lin, idents)
+    });
 }
 
 /// The linear candidates on the nominal chain with viscous friction to the ground that was
@@ -940,11 +1070,17 @@ fn fit_linear_candidates(
 /// than the damping's BIC price (one parameter more, counted in `added`).
 fn fit_linear_candidates_with_viscous(data: &Data, with: &LinExt, c: &mut Candidates) {
     let pen = (data.lines() as f64).ln();
-    for (fit, effect) in [
-        (effects::delay::fit(data, with), Effect::TimeDelay),
-        (effects::current_loop::fit(data, with), Effect::CurrentLoop),
-    ] {
-        let Some(mut f) = fit else { continue };
+    let fits: [(Effect, fn(&Data, &LinExt) -> Option<EffectFit>); 2] = [
+        (Effect::TimeDelay, effects::delay::fit),
+        (Effect::CurrentLoop, effects::current_loop::fit),
+    ];
+    for (effect, fit) in fits {
+        if !c.steps.go(format_args!("{effect} (with viscous friction)")) {
+            continue;
+        }
+        let Some(mut f) = fit(data, with) else {
+            continue;
+        };
         f.added += 1;
         f.params.push(effects::EffectFit::param(
             "viscous_nms_per_rad",
@@ -1003,19 +1139,25 @@ fn fit_extra_mode(
     band: Option<[f64; 2]>,
     c: &mut Candidates,
 ) -> Option<EffectFit> {
+    if !c.steps.go(Effect::UnmodelledMode) {
+        return None;
+    }
+    let budget = &c.steps.budget.clone();
     let mut extra: Vec<crate::model::Chain> = Vec::new();
-    if let Some(ch) = nominal_start(&data.levels[top_level(data)].rec, n + 1, band) {
+    if let Some(ch) = nominal_start(&data.levels[top_level(data)].rec, n + 1, band, budget) {
         extra.push(ch);
     }
     // candidate frequencies of the extra mode: the most significant localised bands
     let freqs = mode_start_freqs(data, nominal);
     let mode_starts = effects::mode::starts(&nom_lin.chain, &freqs, &extra);
-    let mut mode_fit = effects::mode::fit(data, nom_lin, &mode_starts);
+    let mut mode_fit = effects::mode::fit(data, nom_lin, &mode_starts, budget);
+    let with_viscous =
+        with_viscous.filter(|_| c.steps.go("unmodelled_mode (with viscous friction)"));
     if let Some(with) = with_viscous {
         let here = effects::finish_linear(data, Effect::None, with.clone(), vec![], 0);
         let freqs = mode_start_freqs(data, &here);
         let starts = effects::mode::starts(&with.chain, &freqs, &extra);
-        if let Some(mut f) = effects::mode::fit_as(data, with, &starts, Lin::ModeViscous) {
+        if let Some(mut f) = effects::mode::fit_as(data, with, &starts, Lin::ModeViscous, budget) {
             let pen = (data.lines() as f64).ln();
             if mode_fit.as_ref().is_none_or(|m| m.chi2 - f.chi2 > pen) {
                 f.added += 1;
@@ -1078,11 +1220,13 @@ fn fit_amplitude_candidates(
         );
         return;
     }
-    c.push(
-        effects::friction::fit(data, nom_lin),
-        Effect::CoulombFriction,
-    );
-    c.push(effects::backlash::fit(data, nom_lin), Effect::Backlash);
+    c.fit(Effect::CoulombFriction, || {
+        effects::friction::fit(data, nom_lin)
+    });
+    c.fit(Effect::Backlash, || effects::backlash::fit(data, nom_lin));
+    if !c.steps.go(Effect::HardeningStiffness) {
+        return;
+    }
     // hardening stiffens the springs at the highest level: start from the chain the
     // lowest level sees
     let low = (0..data.levels.len())

@@ -164,6 +164,13 @@ impl FitBudget {
         }
     }
 
+    /// Record `n` starts of a search (outside the identification's own fits, e.g. the
+    /// diagnosis's mode search) skipped because the cap has passed.
+    pub fn skip_starts(&self, n: usize) {
+        self.0.starts_skipped.fetch_add(n, Ordering::Relaxed);
+        self.0.capped.store(true, Ordering::Relaxed);
+    }
+
     /// Record a fit (an order, a choice of pairs) skipped because the cap has passed.
     pub fn skip_order(&self) {
         self.0.orders_skipped.fetch_add(1, Ordering::Relaxed);

@@ -574,3 +574,37 @@ fn emps_and_every_preset_loads() {
     assert!(preset("no-such-preset").is_none());
     assert!(load_preset("no-such-preset", &dir).unwrap().is_none());
 }
+
+/// Issue 16: an `miCOMPRESSED` element inflates to at most 8 times its size (at least
+/// 4 MiB): a zlib bomb (6 MiB of zeros in a few kB) is refused naming the ratio, where it
+/// was inflated up to 2 GiB whatever its size; a 1 MiB vector of zeros (under the floor)
+/// still reads.
+#[test]
+fn a_zlib_bomb_is_refused_by_its_ratio() {
+    let w = W { big: false };
+    let file = |values: usize| {
+        let inner = w.matrix(
+            6,
+            &[values as i32, 1],
+            "zeros",
+            &[w.doubles(&vec![0.0; values])],
+        );
+        let mut enc = libflate::zlib::Encoder::new(Vec::new()).unwrap();
+        std::io::Write::write_all(&mut enc, &inner).unwrap();
+        let zipped = enc.finish().into_result().unwrap();
+        let mut f = w.header();
+        f.extend(w.u32(15));
+        f.extend(w.u32(zipped.len() as u32));
+        f.extend(zipped);
+        f
+    };
+    let bomb = file(6 << 17); // 6 MiB of doubles
+    assert!(bomb.len() < 100_000, "{} bytes", bomb.len());
+    let e = MatFile::parse(&bomb, Path::new("bomb.mat"))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("bomb.mat") && e.contains("8 times"), "{e}");
+    let small = file(1 << 17); // 1 MiB
+    let m = MatFile::parse(&small, Path::new("zeros.mat")).unwrap();
+    assert_eq!(numeric(&m.vars["zeros"]).1.len(), 1 << 17);
+}

@@ -17,6 +17,9 @@ pub fn render(d: &Diagnosis) -> String {
         d.data.lines()
     );
     let _ = writeln!(s, "\nVERDICT: {}", d.verdict);
+    if d.time_cap.capped {
+        let _ = writeln!(s, "{} (--max-seconds)", d.time_cap.words());
+    }
     if d.effects.len() > 1 {
         let _ = writeln!(s, "effects (forward selection, strongest first):");
         for st in &d.effects {

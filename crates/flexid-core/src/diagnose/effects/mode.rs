@@ -14,6 +14,7 @@ use super::{build_on, finish_linear, fit_linear, residuals, theta, EffectFit, Li
 use crate::diagnose::lti::LinExt;
 use crate::diagnose::Data;
 use crate::diagnose::Effect;
+use crate::identify::fit::FitBudget;
 use crate::lsq::{minimise, LmResult};
 use crate::model::Chain;
 
@@ -58,13 +59,21 @@ pub fn starts(nominal: &Chain, freqs_hz: &[f64], extra: &[Chain]) -> Vec<Chain> 
 
 /// The extra-body fit from `starts` (chains of one more body than the nominal one), each
 /// with the linear extensions of `base` (the effects named before it, if any).
-pub fn fit(data: &Data, base: &LinExt, starts: &[Chain]) -> Option<EffectFit> {
-    fit_as(data, base, starts, Lin::Mode)
+/// Under `budget`: once it has passed, the starts not yet prefitted or refined are skipped
+/// (the first of each always runs, so a search under way still ends with a fit).
+pub fn fit(data: &Data, base: &LinExt, starts: &[Chain], budget: &FitBudget) -> Option<EffectFit> {
+    fit_as(data, base, starts, Lin::Mode, budget)
 }
 
 /// [`fit`] with the joint refinement over `joint` ([`Lin::Mode`], or [`Lin::ModeViscous`]
 /// to free the motor-ground damper too).
-pub fn fit_as(data: &Data, base: &LinExt, starts: &[Chain], joint: Lin) -> Option<EffectFit> {
+pub fn fit_as(
+    data: &Data,
+    base: &LinExt,
+    starts: &[Chain],
+    joint: Lin,
+    budget: &FitBudget,
+) -> Option<EffectFit> {
     let s: Vec<LinExt> = starts
         .iter()
         .map(|c| LinExt {
@@ -72,7 +81,7 @@ pub fn fit_as(data: &Data, base: &LinExt, starts: &[Chain], joint: Lin) -> Optio
             ..base.clone()
         })
         .collect();
-    let (m, _r) = fit_prefitted(data, &s, joint)?;
+    let (m, _r) = fit_prefitted(data, &s, joint, budget)?;
     let ch = &m.chain;
     let n = ch.masses();
     let mut p = vec![
@@ -109,15 +118,27 @@ pub fn fit_as(data: &Data, base: &LinExt, starts: &[Chain], joint: Lin) -> Optio
 
 /// Each start's appended body prefitted ([`prefit_body`]); the [`JOINT_STARTS`] best of
 /// them refined jointly with the chain; the best joint fit.
-fn fit_prefitted(data: &Data, starts: &[LinExt], joint: Lin) -> Option<(LinExt, LmResult)> {
-    let mut scored: Vec<(f64, LinExt)> = starts
-        .iter()
-        .filter_map(|st| prefit_body(data, st, PREFIT_ITERS))
-        .filter(|(c, _)| c.is_finite())
-        .collect();
+fn fit_prefitted(
+    data: &Data,
+    starts: &[LinExt],
+    joint: Lin,
+    budget: &FitBudget,
+) -> Option<(LinExt, LmResult)> {
+    let mut scored: Vec<(f64, LinExt)> = Vec::new();
+    for (i, st) in starts.iter().enumerate() {
+        if !scored.is_empty() && budget.expired() {
+            budget.skip_starts(starts.len() - i);
+            break;
+        }
+        scored.extend(prefit_body(data, st, PREFIT_ITERS).filter(|(c, _)| c.is_finite()));
+    }
     scored.sort_by(|a, b| a.0.total_cmp(&b.0));
     let mut best: Option<(LinExt, LmResult)> = None;
-    for (_, st) in scored.iter().take(JOINT_STARTS) {
+    for (i, (_, st)) in scored.iter().take(JOINT_STARTS).enumerate() {
+        if best.is_some() && budget.expired() {
+            budget.skip_starts(scored.len().min(JOINT_STARTS) - i);
+            break;
+        }
         if let Some((m, r)) = fit_linear(data, &data.targets, joint, st, JOINT_ITERS) {
             if best.as_ref().is_none_or(|b| r.cost < b.1.cost) {
                 best = Some((m, r));

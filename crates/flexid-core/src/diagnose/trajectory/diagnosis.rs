@@ -281,5 +281,6 @@ pub fn diagnose(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Diagnosis,
         seconds: 0.0,
         stage_cpu_s: Vec::new(),
         trajectory: Some(t),
+        time_cap: crate::diagnose::TimeCap::of(&opts.budget, Vec::new()),
     })
 }

@@ -224,3 +224,28 @@ fn periodic_recordings_and_several_bodies_keep_the_frequency_path() {
     assert!(!diagnosis::applies(&[periodic], 1));
     assert!(!diagnosis::applies(&[], 1));
 }
+
+/// Issue 16: a time cap that passes before the nominal chain is begun is an error of its
+/// own (the command line then identifies the nominal chain alone), not a panic or a
+/// diagnosis without a model; the trajectory path is not capped (it takes milliseconds).
+#[test]
+fn a_cap_passed_before_the_nominal_chain_is_its_own_error() {
+    let rec = simulate(&PLANT, &Setup::default());
+    let two = DiagnoseOptions {
+        masses: 2,
+        budget: crate::identify::fit::FitBudget::with_cap_s(0.0),
+        ..opts()
+    };
+    match diagnose(std::slice::from_ref(&rec), &two) {
+        Err(crate::diagnose::DiagnoseError::CappedBeforeNominal { max_seconds, .. }) => {
+            assert_eq!(max_seconds, 0.0)
+        }
+        other => panic!("{:?}", other.map(|d| d.verdict)),
+    }
+    let traj = DiagnoseOptions {
+        budget: crate::identify::fit::FitBudget::with_cap_s(0.0),
+        ..opts()
+    };
+    let d = diagnose(&[rec], &traj).unwrap();
+    assert!(!d.time_cap.capped, "{:?}", d.time_cap);
+}

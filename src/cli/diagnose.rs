@@ -35,6 +35,11 @@ pub struct DiagnoseArgs {
     /// distortion is seen.
     #[arg(long)]
     pub all_effects: bool,
+    /// The nominal chain's last body has a spring to the ground (a Duffing oscillator's
+    /// linear spring, a structure on its suspension): its stiffness is fitted with the chain,
+    /// and `gravity` is no candidate.
+    #[arg(long)]
+    pub ground_spring: bool,
     /// Time cap of the diagnosis [s]: after it, the nominal chain of the first recording
     /// is identified (in at most a quarter of the cap more, at least 1 s) and returned
     /// without a verdict, marked `TIME CAP` in the report and `time_cap.capped` in the JSON.
@@ -84,6 +89,7 @@ pub fn diagnose(a: &DiagnoseArgs) -> Result<(), CliError> {
         masses: a.masses,
         band_hz,
         force_nonlinear: a.all_effects,
+        ground_spring: a.ground_spring,
         ..DiagnoseOptions::default()
     };
     let t0 = Instant::now();

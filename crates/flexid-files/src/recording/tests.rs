@@ -74,6 +74,8 @@ fn round_trip_is_bit_identical() {
                 rms_nm: None,
                 design: Some("test".into()),
                 blocks: Vec::new(),
+                realisations: Vec::new(),
+                band_limited: false,
             }),
             source: Some("unit test, with \"quotes\"".into()),
             io_delay_samples: Some(1),

@@ -605,4 +605,45 @@ mod tests {
             assert!((a - b).norm() < 1e-7 * b.norm(), "{f}: {a} {b}");
         }
     }
+
+    /// A band-limited input: the model is the continuous response at the line (reference:
+    /// a mass on a spring and a damper to the ground in closed form, `1/(k - Jω² + jbω)`,
+    /// times the backward difference `(1 - e^{-jωT})/T` and a delay `e^{-jωτ}`), unlike
+    /// the held footing, which lags by about half a sample.
+    #[test]
+    fn a_band_limited_input_gives_the_continuous_response() {
+        let (j, k, b, fs, tau) = (5.4e-6, 1.02, 2.3e-4, 610.35, 0.3e-3);
+        let m = LinExt {
+            ground_k: k,
+            motor_b: b,
+            ground_spring: true,
+            delay_s: tau,
+            ..LinExt::nominal(Chain::new(vec![j], vec![], vec![]).unwrap())
+        };
+        let d = Discrete::band_limited(&m, fs, 1);
+        let held = Discrete::new(&m, fs, 1);
+        for f in [0.1, 10.0, 69.5, 150.0, 199.9] {
+            let w = 2.0 * std::f64::consts::PI * f;
+            let x = 1.0 / Complex64::new(k - j * w * w, b * w);
+            let zi = Complex64::from_polar(1.0, -w / fs);
+            let want = x * (1.0 - zi) * fs * Complex64::from_polar(1.0, -w * (tau + 1.0 / fs));
+            let got = d.frf(f, FrfKind::DifferencedVelocity);
+            assert!(
+                (got - want).norm() < 1e-9 * want.norm(),
+                "{f}: {got} {want}"
+            );
+            assert!(
+                (d.frf(f, FrfKind::Position)
+                    - x * Complex64::from_polar(1.0, -w * (tau + 1.0 / fs)))
+                .norm()
+                    < 1e-9 * x.norm()
+            );
+            // the held input's response lags by about half a sample more
+            let lag = (held.frf(f, FrfKind::DifferencedVelocity) / got).arg();
+            assert!(
+                (lag + 0.5 * w / fs).abs() < 0.2 * (0.5 * w / fs) + 1e-6,
+                "{f}: {lag}"
+            );
+        }
+    }
 }

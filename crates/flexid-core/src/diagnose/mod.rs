@@ -641,8 +641,17 @@ fn diagnose_from(
     let nominal = effects::finish_linear(data, Effect::None, nom_lin.clone(), vec![], 0);
     stage.lap("nominal");
     let ground_note = nom_lin.ground_spring.then(|| {
+        // a ground spring a thousand times the last coupling's stiffness holds the last
+        // body still (it moves less than a thousandth of that coupling's deflection)
+        let pinned = match nom_lin.chain.stiffness_nm_per_rad.last() {
+            Some(&c) if nom_lin.ground_k > 1e3 * c => format!(
+                "; it pins the last body ({:.1e} times the last coupling's stiffness): the axis has one body less than --masses {n} says",
+                nom_lin.ground_k / c
+            ),
+            _ => String::new(),
+        };
         format!(
-            "nominal model with a spring from the last body to the ground (--ground-spring): {:.6e} N m/rad, fitted with the chain; gravity is no candidate",
+            "nominal model with a spring from the last body to the ground (--ground-spring): {:.6e} N m/rad, fitted with the chain; gravity is no candidate{pinned}",
             nom_lin.ground_k
         )
     });

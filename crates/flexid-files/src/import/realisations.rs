@@ -140,7 +140,7 @@ mod tests {
                     seed = seed
                         .wrapping_mul(6364136223846793005)
                         .wrapping_add(1442695040888963407);
-                    (seed >> 11) as f64 / (1u64 << 53) as f64 * 6.283
+                    (seed >> 11) as f64 / (1u64 << 53) as f64 * std::f64::consts::TAU
                 })
                 .collect();
             let period: Vec<f64> = (0..p)
@@ -148,7 +148,9 @@ mod tests {
                     lines
                         .iter()
                         .zip(&ph)
-                        .map(|(&k, f)| (6.283185307179586 * (k * n) as f64 / p as f64 + f).cos())
+                        .map(|(&k, f)| {
+                            (std::f64::consts::TAU * (k * n) as f64 / p as f64 + f).cos()
+                        })
                         .sum::<f64>()
                 })
                 .collect();
@@ -159,7 +161,7 @@ mod tests {
             x.extend(std::iter::repeat_n(0.0, gap + 10 * r));
         }
         let hum: Vec<f64> = (0..x.len())
-            .map(|n| 0.3 * (6.283185307179586 * 50.3 * n as f64 / p as f64).cos())
+            .map(|n| 0.3 * (std::f64::consts::TAU * 50.3 * n as f64 / p as f64).cos())
             .collect();
         let with_hum: Vec<f64> = x.iter().zip(&hum).map(|(a, b)| a + b).collect();
         let found = find(&x, p);

@@ -34,6 +34,11 @@ pub struct DiagnoseArgs {
     /// distortion is seen.
     #[arg(long)]
     pub all_effects: bool,
+    /// The nominal chain's last body has a spring to the ground (a Duffing oscillator's
+    /// linear spring, a structure on its suspension): its stiffness is fitted with the chain,
+    /// and `gravity` is no candidate.
+    #[arg(long)]
+    pub ground_spring: bool,
     /// Time cap of the diagnosis [s], checked between its steps (the nominal fit's starts,
     /// each candidate effect, each forward-selection step): once reached, no further
     /// candidate is tried and the verdict is made from what was fitted, marked `TIME CAP`
@@ -91,6 +96,7 @@ pub fn diagnose(a: &DiagnoseArgs) -> Result<(), CliError> {
         // checked inside the diagnosis between its steps: at the cap it answers with what
         // it fitted, marked capped (no thread is left running)
         budget: FitBudget::with_cap_s(a.max_seconds),
+        ground_spring: a.ground_spring,
         ..DiagnoseOptions::default()
     };
     let d = match run_diagnosis(&recs, &opts) {

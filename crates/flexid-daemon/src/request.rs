@@ -322,6 +322,8 @@ pub fn plan(
                 rms_nm: Some(flexid_core::excitation::rms(&p)),
                 design: Some("periodic_log_sweep".into()),
                 blocks: Vec::new(),
+                realisations: Vec::new(),
+                band_limited: false,
             };
             (p, info)
         }

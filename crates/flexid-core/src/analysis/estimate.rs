@@ -17,7 +17,8 @@ pub struct EstimatedFrf {
     pub frf: Frf,
     /// Levels at the non-excited lines (periodic excitation only).
     pub nonexcited: Option<NonExcitedLevels>,
-    /// "periodic", "stepped", "lpm" (one sweep) or "welch_h1".
+    /// "periodic", "realisations" (several multisine realisations), "stepped", "lpm" (one
+    /// sweep) or "welch_h1".
     pub method: &'static str,
     /// The motion signal used.
     pub motion: MotionSignal,
@@ -26,6 +27,12 @@ pub struct EstimatedFrf {
     /// How the estimate was made, in words for the report: the estimator, window,
     /// segment or period length and resolution, averages, what was removed.
     pub choices: String,
+    /// Several realisations of a multisine only: the variance of `frf.h` from the noise
+    /// alone, line by line (`frf.var` is the spread over realisations: noise and the
+    /// stochastic nonlinear distortion), and the periods it is worth as a variance's
+    /// degrees of freedom ([`frf::estimate_realisations`]). `None` for the other
+    /// estimators, whose variance is the noise's.
+    pub noise_var: Option<(Vec<f64>, usize)>,
 }
 
 /// The recording's excitation when it is periodic (a multisine or stepped design with a
@@ -96,6 +103,7 @@ pub fn estimate_frf(
         motion,
         averages: r.averages,
         choices: r.choices,
+        noise_var: r.noise_var,
     })
 }
 
@@ -135,6 +143,8 @@ pub struct ResponseEstimate {
     pub method: &'static str,
     pub averages: usize,
     pub choices: String,
+    /// As [`EstimatedFrf::noise_var`].
+    pub noise_var: Option<(Vec<f64>, usize)>,
 }
 
 /// Estimate the response `resp.y` to the torque command: the estimator chosen by the
@@ -151,7 +161,9 @@ fn estimate_response(
     });
     let periodic = periodic_excitation(rec);
     let stepped = stepped_blocks(rec);
-    let mut out = if let Some(blocks) = stepped {
+    let mut out = if let Some(info) = periodic.filter(|e| !e.realisations.is_empty()) {
+        realisations_estimate(info, u, y, fs, kind, resp.words)?
+    } else if let Some(blocks) = stepped {
         let frf = frf::estimate_stepped(blocks, u, y, fs, kind, resp.quantum)?;
         let periods = blocks.iter().map(|b| b.periods).min().unwrap_or(0);
         let choices = format!(
@@ -165,6 +177,7 @@ fn estimate_response(
             averages: periods,
             method: "stepped",
             choices,
+            noise_var: None,
         }
     } else if let Some(info) = single_sweep(rec) {
         // the user's band first, else the sweep's own
@@ -187,6 +200,7 @@ fn estimate_response(
             averages: q + 1,
             method: "lpm",
             choices,
+            noise_var: None,
         }
     } else if let Some(info) = periodic {
         // nothing sized by the description before it is checked against the record
@@ -218,6 +232,7 @@ fn estimate_response(
             frf,
             method: "periodic",
             choices,
+            noise_var: None,
         }
     } else {
         let n = u.len();
@@ -247,6 +262,7 @@ fn estimate_response(
             averages: w.segments(),
             method: "welch_h1",
             choices,
+            noise_var: None,
         }
     };
     let band = band_hz.or_else(|| {
@@ -256,28 +272,80 @@ fn estimate_response(
             .and_then(|e| e.band_hz)
             .filter(|_| out.method == "welch_h1")
     });
-    if let Some([lo, hi]) = band {
-        out.frf.retain_band(|f| f >= lo && f <= hi);
-    }
-    // drop lines without input (zero or non-finite response)
-    let bad: Vec<bool> = out
-        .frf
-        .h
-        .iter()
-        .map(|h| !(h.re.is_finite() && h.im.is_finite()) || h.norm() == 0.0)
+    // the lines kept: in the band, with input (a zero or non-finite response is none)
+    let keep: Vec<bool> = (0..out.frf.len())
+        .map(|i| {
+            let (f, h) = (out.frf.freq_hz[i], out.frf.h[i]);
+            band.is_none_or(|[lo, hi]| f >= lo && f <= hi)
+                && h.re.is_finite()
+                && h.im.is_finite()
+                && h.norm() != 0.0
+        })
         .collect();
-    if bad.iter().any(|b| *b) {
+    if keep.iter().any(|k| !k) {
         let mut i = 0;
         out.frf.retain_band(|_| {
-            let keep = !bad[i];
             i += 1;
-            keep
+            keep[i - 1]
         });
+        if let Some((v, _)) = out.noise_var.as_mut() {
+            let mut i = 0;
+            v.retain(|_| {
+                i += 1;
+                keep[i - 1]
+            });
+        }
     }
     if out.frf.is_empty() {
         return Err(AnalysisError::NoLines);
     }
     Ok(out)
+}
+
+/// The best linear approximation over the realisations of a multisine
+/// ([`frf::estimate_realisations`]).
+fn realisations_estimate(
+    info: &crate::excitation::ExcitationInfo,
+    u: &[f64],
+    y: &[f64],
+    fs: f64,
+    kind: FrfKind,
+    words: &str,
+) -> Result<ResponseEstimate, AnalysisError> {
+    let e = frf::estimate_realisations(
+        u,
+        y,
+        fs,
+        info.period_samples,
+        &info.realisations,
+        &info.excited_lines,
+        kind,
+    )?;
+    let r = e.realisations;
+    // the noise spectrum's bins average `segments` Hann periodograms: about 2 real degrees
+    // of freedom each, as many as `segments + 1` periods give a line's variance
+    let noise_var = e.noise_var.map(|v| (v, e.noise_segments + 1));
+    let noise_words = match &noise_var {
+        Some((_, p)) => format!(
+            "; the noise alone from the repeated lead-ins ({} Hann segments, worth {p} periods), for the models that reproduce the distortion",
+            e.noise_segments
+        ),
+        None => "; no noise estimate (no repeated lead-in)".to_string(),
+    };
+    let choices = format!(
+        "FRF: best linear approximation over {r} realisations of the multisine (one steady period of {} samples each after its lead-in, {:.4} Hz lines, no window): the mean of Y/U per line, its variance from the spread over the realisations (noise and stochastic nonlinear distortion){noise_words}{}",
+        info.period_samples,
+        fs / info.period_samples as f64,
+        words
+    );
+    Ok(ResponseEstimate {
+        frf: e.frf,
+        nonexcited: e.nonexcited,
+        method: "realisations",
+        averages: r,
+        choices,
+        noise_var,
+    })
 }
 
 /// How the motion signal entered the estimate, as a clause of the choices sentence.

@@ -20,6 +20,29 @@ pub struct LevelDistortion {
     /// Where the distortion is [Hz]: the lowest and highest non-excited line more than
     /// 10 dB above its noise (`None` without such a line).
     pub distortion_hz: Option<[f64; 2]>,
+    /// Several realisations of a multisine: the median over the lines of the FRF's spread
+    /// over the realisations against its noise alone [dB] (the stochastic nonlinear
+    /// distortion; about 0 dB for a linear system), [`realisation_excess_db`]. `None` for
+    /// one realisation.
+    pub realisation_excess_db: Option<f64>,
+}
+
+/// The stochastic nonlinear distortion of several realisations: the median over the lines
+/// of `spread_var / noise_var` in dB (both variances of the mean FRF; the ratio of two
+/// variance estimates, about 1 under noise alone, its median over many lines very close
+/// to 1). `None` without lines.
+pub fn realisation_excess_db(spread_var: &[f64], noise_var: &[f64]) -> Option<f64> {
+    let mut r: Vec<f64> = spread_var
+        .iter()
+        .zip(noise_var)
+        .filter(|(s, n)| s.is_finite() && n.is_finite() && **n > 0.0)
+        .map(|(s, n)| s / n)
+        .collect();
+    if r.is_empty() {
+        return None;
+    }
+    r.sort_by(f64::total_cmp);
+    Some(10.0 * r[r.len() / 2].max(f64::MIN_POSITIVE).log10())
 }
 
 /// Change of the FRF between two recordings (amplitude levels).
@@ -84,6 +107,7 @@ pub fn level_distortion(
         detection_excess_db: ex,
         detection_lines_hit: hit,
         distortion_hz: at,
+        realisation_excess_db: None,
     }
 }
 

@@ -16,6 +16,18 @@ fn num(x: f64) -> Value {
     }
 }
 
+/// A linear model (the chain and the nominal extensions): the nominal model's, and the one
+/// under each named effect (`effects[i].model`: the chain refitted with the effect).
+fn lin_json(l: &super::lti::LinExt) -> Value {
+    json!({
+        "inertia_kgm2": l.chain.inertia_kgm2,
+        "stiffness_nm_per_rad": l.chain.stiffness_nm_per_rad,
+        "damping_nms_per_rad": l.chain.damping_nms_per_rad,
+        "viscous_nms_per_rad": num(l.motor_b),
+        "ground_stiffness_nm_per_rad": l.ground_spring.then(|| num(l.ground_k)),
+    })
+}
+
 pub fn to_json(d: &Diagnosis) -> Value {
     let mut v = body_json(d);
     v["time_cap"] = time_cap_json(&d.time_cap);
@@ -34,12 +46,12 @@ pub fn time_cap_json(t: &super::TimeCap) -> Value {
 
 fn body_json(d: &Diagnosis) -> Value {
     let g = &d.gap;
-    let chain = &d.nominal.lin.chain;
     json!({
         "verdict": d.verdict,
         "effects": d.effects.iter().map(|s| json!({
             "effect": s.effect, "after_rms_db": num(s.after_rms_db), "score": num(s.score),
             "params": s.fit.params.iter().map(|p| json!({"name": p.name, "value": num(p.value), "std": num(p.std)})).collect::<Vec<_>>(),
+            "model": lin_json(&s.fit.lin),
         })).collect::<Vec<_>>(),
         "masses": d.masses,
         "gap": {
@@ -79,6 +91,7 @@ fn body_json(d: &Diagnosis) -> Value {
                 "detection_excess_db": l.detection_excess_db.map(num),
                 "detection_lines_hit": l.detection_lines_hit.map(num),
                 "distortion_hz": l.distortion_hz.map(|w| [num(w[0]), num(w[1])]),
+                "realisation_excess_db": l.realisation_excess_db.map(num),
             })).collect::<Vec<_>>(),
             "level_changes": d.residual.changes.iter().map(|c| json!({
                 "a": c.a, "b": c.b, "mean_z2": num(c.mean_z2), "rms_db": num(c.rms_db), "significant": c.significant,
@@ -86,11 +99,7 @@ fn body_json(d: &Diagnosis) -> Value {
             "local_gap": d.residual.local.map(located_json),
             "local_change": d.residual.change_local.map(located_json),
         },
-        "nominal": {
-            "inertia_kgm2": chain.inertia_kgm2,
-            "stiffness_nm_per_rad": chain.stiffness_nm_per_rad,
-            "damping_nms_per_rad": chain.damping_nms_per_rad,
-        },
+        "nominal": lin_json(&d.nominal.lin),
         "trajectory": d.trajectory.as_ref().map(trajectory_json),
         "torque_path": d.data.torque.as_ref().map(torque_path_json),
         "notes": d.notes,

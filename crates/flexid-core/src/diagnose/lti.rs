@@ -34,6 +34,12 @@ pub struct LinExt {
     pub current_loop: Option<Loop>,
     /// Delay [s] beyond the recording's whole-sample `io_delay`.
     pub delay_s: f64,
+    /// The nominal model has a spring from the last body to the ground (`ground_k`, the
+    /// user's `--ground-spring`: a Duffing oscillator's linear spring, a structure on its
+    /// suspension): `ground_k` is then a parameter of the nominal model, fitted with the
+    /// chain by every fit ([`super::effects::theta`]), and not an effect (`gravity` is not
+    /// a candidate).
+    pub ground_spring: bool,
 }
 
 impl LinExt {
@@ -44,6 +50,7 @@ impl LinExt {
             motor_b: 0.0,
             current_loop: None,
             delay_s: 0.0,
+            ground_spring: false,
         }
     }
 
@@ -159,6 +166,18 @@ pub struct Discrete {
     #[cfg(test)]
     n: usize,
     ts: f64,
+    /// A band-limited input ([`Discrete::band_limited`]): the continuous `(A, B)`, the
+    /// motor's state index and the whole delay [s].
+    continuous: Option<Continuous>,
+}
+
+/// The continuous model behind [`Discrete::band_limited`].
+#[derive(Debug, Clone)]
+struct Continuous {
+    a: DMatrix<f64>,
+    b: DVector<f64>,
+    n: usize,
+    delay_s: f64,
 }
 
 impl Discrete {
@@ -204,7 +223,64 @@ impl Discrete {
             #[cfg(test)]
             n,
             ts,
+            continuous: None,
         }
+    }
+
+    /// The model of a measurement whose input is band-limited between the samples (an
+    /// analogue excitation sampled like the output, [`crate::excitation::ExcitationInfo::band_limited`]):
+    /// the continuous system's response at the line's frequency, `x = (jωI - A)⁻¹ B
+    /// e^{-jωτ}`, the output measured as the sampled output is (a differenced position:
+    /// times `(1 - e^{-jωT})/T`). Exact for band-limited signals: their samples' DFT is the
+    /// continuous spectrum's.
+    pub fn band_limited(m: &LinExt, fs: f64, io_delay_samples: u32) -> Self {
+        let mut d = Self::new(m, fs, io_delay_samples);
+        let (a, b) = m.continuous(None);
+        d.continuous = Some(Continuous {
+            b: b.column(0).into_owned(),
+            a,
+            n: m.chain.masses(),
+            delay_s: m.delay_s.max(0.0) + io_delay_samples as f64 / fs,
+        });
+        d
+    }
+
+    /// [`Discrete::new`] or [`Discrete::band_limited`].
+    pub fn with_input(m: &LinExt, fs: f64, io_delay_samples: u32, band_limited: bool) -> Self {
+        if band_limited {
+            Self::band_limited(m, fs, io_delay_samples)
+        } else {
+            Self::new(m, fs, io_delay_samples)
+        }
+    }
+
+    /// The continuous response of [`Discrete::band_limited`] at `f_hz` (`None` for a held
+    /// input), or NaN when `jωI - A` is singular.
+    fn continuous_frf(&self, f_hz: f64, kind: FrfKind) -> Option<Complex64> {
+        let c = self.continuous.as_ref()?;
+        let w = 2.0 * std::f64::consts::PI * f_hz;
+        let ns = c.a.nrows();
+        let m = DMatrix::from_fn(ns, ns, |r, k| {
+            let v = Complex64::new(-c.a[(r, k)], 0.0);
+            if r == k {
+                v + Complex64::new(0.0, w)
+            } else {
+                v
+            }
+        });
+        let rhs = DVector::from_fn(ns, |r, _| Complex64::new(c.b[r], 0.0));
+        let nan = Complex64::new(f64::NAN, f64::NAN);
+        let Some(x) = m.lu().solve(&rhs) else {
+            return Some(nan);
+        };
+        let late = Complex64::from_polar(1.0, -w * c.delay_s);
+        let zi = Complex64::from_polar(1.0, -w * self.ts);
+        let (pos, vel) = (x[0] * late, x[c.n] * late);
+        Some(match kind {
+            FrfKind::Position => pos,
+            FrfKind::Velocity => vel,
+            _ => pos * (1.0 - zi) / self.ts,
+        })
     }
 
     /// Response at `f_hz` for the FRF kind of the measurement.
@@ -218,6 +294,9 @@ impl Discrete {
     /// the same operations in the same order as [`Discrete::solve_rows`], so the same result
     /// to the bit); other sizes in `scratch`.
     fn frf_with(&self, f_hz: f64, kind: FrfKind, scratch: &mut Vec<Complex64>) -> Complex64 {
+        if let Some(h) = self.continuous_frf(f_hz, kind) {
+            return h;
+        }
         let z = Complex64::from_polar(1.0, 2.0 * std::f64::consts::PI * f_hz * self.ts);
         let zi = 1.0 / z;
         let (pos, vel) = self
@@ -524,6 +603,47 @@ mod tests {
         for f in [3.0, 590.0] {
             let (a, b) = (d2.frf(f, FrfKind::DifferencedVelocity), sc.frf(f));
             assert!((a - b).norm() < 1e-7 * b.norm(), "{f}: {a} {b}");
+        }
+    }
+
+    /// A band-limited input: the model is the continuous response at the line (reference:
+    /// a mass on a spring and a damper to the ground in closed form, `1/(k - Jω² + jbω)`,
+    /// times the backward difference `(1 - e^{-jωT})/T` and a delay `e^{-jωτ}`), unlike
+    /// the held footing, which lags by about half a sample.
+    #[test]
+    fn a_band_limited_input_gives_the_continuous_response() {
+        let (j, k, b, fs, tau) = (5.4e-6, 1.02, 2.3e-4, 610.35, 0.3e-3);
+        let m = LinExt {
+            ground_k: k,
+            motor_b: b,
+            ground_spring: true,
+            delay_s: tau,
+            ..LinExt::nominal(Chain::new(vec![j], vec![], vec![]).unwrap())
+        };
+        let d = Discrete::band_limited(&m, fs, 1);
+        let held = Discrete::new(&m, fs, 1);
+        for f in [0.1, 10.0, 69.5, 150.0, 199.9] {
+            let w = 2.0 * std::f64::consts::PI * f;
+            let x = 1.0 / Complex64::new(k - j * w * w, b * w);
+            let zi = Complex64::from_polar(1.0, -w / fs);
+            let want = x * (1.0 - zi) * fs * Complex64::from_polar(1.0, -w * (tau + 1.0 / fs));
+            let got = d.frf(f, FrfKind::DifferencedVelocity);
+            assert!(
+                (got - want).norm() < 1e-9 * want.norm(),
+                "{f}: {got} {want}"
+            );
+            assert!(
+                (d.frf(f, FrfKind::Position)
+                    - x * Complex64::from_polar(1.0, -w * (tau + 1.0 / fs)))
+                .norm()
+                    < 1e-9 * x.norm()
+            );
+            // the held input's response lags by about half a sample more
+            let lag = (held.frf(f, FrfKind::DifferencedVelocity) / got).arg();
+            assert!(
+                (lag + 0.5 * w / fs).abs() < 0.2 * (0.5 * w / fs) + 1e-6,
+                "{f}: {lag}"
+            );
         }
     }
 }

@@ -12,6 +12,7 @@ pub mod damper_free;
 pub mod distortion;
 mod effect;
 pub mod effects;
+pub mod ground_spring;
 pub mod json;
 pub mod localise;
 pub mod lti;
@@ -95,6 +96,10 @@ pub struct DiagnoseOptions {
     pub fit_lines: usize,
     /// Run the amplitude-dependent candidates even without amplitude dependence/distortion.
     pub force_nonlinear: bool,
+    /// The nominal model has a spring from its last body to the ground (the user's
+    /// `--ground-spring`; [`ground_spring`]): its stiffness is a nominal parameter, and
+    /// `gravity` is no candidate. Off (the default): a free chain, as before.
+    pub ground_spring: bool,
     /// The calling thread's CPU clock [ns] for [`Diagnosis::stage_cpu_s`] (for example
     /// `flexid_rt::clock::thread_cpu_ns`); `None` (the default) leaves the stages empty.
     /// The core reads no clock of its own: its results depend on the input only.
@@ -117,6 +122,7 @@ impl Default for DiagnoseOptions {
             spring_substeps: 4,
             fit_lines: 300,
             force_nonlinear: false,
+            ground_spring: false,
             cpu_clock: None,
             budget: FitBudget::unlimited(),
         }
@@ -138,6 +144,10 @@ pub struct Level {
     /// Periods (periodic) or segments (Welch) averaged: the line variances' degrees of
     /// freedom (see [`noise`]).
     pub averages: usize,
+    /// Several realisations of a multisine: `var` is the noise alone, this the variance
+    /// from the spread over the realisations (noise and stochastic nonlinear distortion),
+    /// on the same lines. `None` otherwise.
+    pub spread_var: Option<Vec<f64>>,
 }
 
 /// The measurements as the effect fits see them.
@@ -247,6 +257,12 @@ fn target(l: &Level, max_lines: usize) -> Target {
             .map(|&i| l.h[i].norm() / l.var[i].sqrt())
             .collect(),
         io_delay: l.io_delay,
+        band_limited: l
+            .rec
+            .sidecar
+            .excitation
+            .as_ref()
+            .is_some_and(|e| e.band_limited),
         idx,
     }
 }
@@ -263,10 +279,19 @@ pub fn prepare(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Data, Diagn
         if (r.sample_rate_hz - fs).abs() > 1e-9 * fs {
             return Err(DiagnoseError::Rates);
         }
-        let e = estimate_frf(r, opts.band_hz).map_err(|e| DiagnoseError::Analysis(i, e))?;
+        let mut e = estimate_frf(r, opts.band_hz).map_err(|e| DiagnoseError::Analysis(i, e))?;
         kind = e.frf.kind;
         if kind == FrfKind::Other {
             return Err(DiagnoseError::Kind(i));
+        }
+        // several realisations of a multisine: the models are judged against the noise
+        // alone (the spread over realisations holds the stochastic nonlinear distortion,
+        // which the simulated candidates reproduce and a linear model cannot: it is part
+        // of the gap)
+        let mut spread = None;
+        if let Some((v, periods)) = e.noise_var.take() {
+            spread = Some(std::mem::replace(&mut e.frf.var, v));
+            e.averages = periods;
         }
         let keep = e.frf.usable_lines();
         if keep.is_empty() {
@@ -284,6 +309,7 @@ pub fn prepare(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Data, Diagn
             .sum::<f64>()
             / n)
             .sqrt();
+        let spread_var = spread.map(|s| keep.iter().map(|&k| s[k]).collect());
         levels.push(Level {
             f: keep.iter().map(|&k| e.frf.freq_hz[k]).collect(),
             h: keep.iter().map(|&k| e.frf.h[k]).collect(),
@@ -294,6 +320,7 @@ pub fn prepare(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Data, Diagn
             torque_rms: rms,
             io_delay: r.sidecar.io_delay_samples.unwrap_or(0),
             averages: e.averages,
+            spread_var,
         });
     }
     let targets = levels.iter().map(|l| target(l, opts.fit_lines)).collect();
@@ -602,18 +629,27 @@ pub fn diagnose(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Diagnosis,
     }
     let n = opts.masses.max(1);
     let mut idents = Vec::new();
-    let nom_lin = fit_nominal(&data, n, opts.band_hz, &opts.budget, &mut idents)?;
+    let (nom_lin, grounded_damped) = if opts.ground_spring {
+        fit_grounded_nominal(&data, n, opts.band_hz, &opts.budget, &mut idents)?
+    } else {
+        (
+            fit_nominal(&data, n, opts.band_hz, &opts.budget, &mut idents)?,
+            None,
+        )
+    };
     // the chain identified with the motor's damper to the ground taken out of the
     // measurement: a start the damper's fit cannot reach from a free chain bent to mimic it
-    // (not needed when the free chain already leaves only noise)
-    let damper_free: Vec<LinExt> =
-        if data.within_noise(data.chi2_of(&nom_lin)) || !steps.go("damper-free nominal start") {
-            Vec::new()
-        } else {
-            damper_free::start(&data, n, opts.band_hz, &opts.budget)
-                .into_iter()
-                .collect()
-        };
+    // (not needed when the free chain already leaves only noise); with a ground spring, the
+    // grounded fit with its damper instead (a free chain's start is none)
+    let damper_free: Vec<LinExt> = if opts.ground_spring {
+        grounded_damped.into_iter().collect()
+    } else if data.within_noise(data.chi2_of(&nom_lin)) || !steps.go("damper-free nominal start") {
+        Vec::new()
+    } else {
+        damper_free::start(&data, n, opts.band_hz, &opts.budget)
+            .into_iter()
+            .collect()
+    };
     stage.lap("damper_free");
     // a candidate whose own parameter is not significant can be the nominal model fitted
     // better (its extension's path led the chain out of a basin the nominal fit stayed
@@ -712,6 +748,21 @@ fn diagnose_from(
     let nom_lin = viscous.nominal.clone();
     let nominal = effects::finish_linear(data, Effect::None, nom_lin.clone(), vec![], 0);
     stage.lap("nominal");
+    let ground_note = nom_lin.ground_spring.then(|| {
+        // a ground spring a thousand times the last coupling's stiffness holds the last
+        // body still (it moves less than a thousandth of that coupling's deflection)
+        let pinned = match nom_lin.chain.stiffness_nm_per_rad.last() {
+            Some(&c) if nom_lin.ground_k > 1e3 * c => format!(
+                "; it pins the last body ({:.1e} times the last coupling's stiffness): the axis has one body less than --masses {n} says",
+                nom_lin.ground_k / c
+            ),
+            _ => String::new(),
+        };
+        format!(
+            "nominal model with a spring from the last body to the ground (--ground-spring): {:.6e} N m/rad, fitted with the chain; gravity is no candidate{pinned}",
+            nom_lin.ground_k
+        )
+    });
 
     // what the residual is made of
     let residual = residual_kind(data, &nominal);
@@ -758,6 +809,7 @@ fn diagnose_from(
     );
     let (mut fits, mut notes, steps) = (candidates.fits, candidates.notes, candidates.steps);
     notes.insert(0, viscous.note.clone());
+    notes.splice(1..1, ground_note);
     if let Some(tp) = &data.torque {
         notes.push(tp.describe());
         torque_path::drop_contradicted(tp, data.levels[0].io_delay, &mut fits, &mut notes);
@@ -854,7 +906,7 @@ fn fit_next(
     if wanted(Effect::CurrentLoop) {
         fits.extend(effects::current_loop::fit(data, base));
     }
-    if wanted(Effect::Gravity) {
+    if wanted(Effect::Gravity) && !base.ground_spring {
         fits.extend(effects::gravity::fit(data, base, &[]));
     }
     if wanted(Effect::UnmodelledMode) {
@@ -987,6 +1039,50 @@ fn fit_nominal(
     Ok(fit_joint(start))
 }
 
+/// The nominal chain of `n` bodies with a spring to the ground ([`ground_spring`]), fitted
+/// jointly to every level from the free chains identified on each level (kept in
+/// `starts`, the other fits' starts) with a grid of ground stiffnesses, and for one body
+/// from its impedance's least squares: the start with the lowest chi² after the joint fit
+/// with the motor's damper (a grounded body without damping has an infinite resonance, no
+/// fit starts from it). Returns that fit with its damper taken out and the chain and
+/// ground spring refitted (the nominal model before the damper's decision,
+/// [`effects::viscous`]), and the fit with the damper (a start of that decision).
+fn fit_grounded_nominal(
+    data: &Data,
+    n: usize,
+    band: Option<[f64; 2]>,
+    budget: &FitBudget,
+    starts: &mut Vec<crate::model::Chain>,
+) -> Result<(LinExt, Option<LinExt>), DiagnoseError> {
+    for l in &data.levels {
+        if let Some(c) = nominal_start(&l.rec, n, band, budget) {
+            starts.push(c);
+        }
+    }
+    let mut grounded = ground_spring::starts(data, starts);
+    grounded.retain(|s| s.chain.masses() == n);
+    let jt_w = |s: &LinExt| s.chain.total_inertia() * 2.0 * std::f64::consts::PI * data.f_min();
+    let mut best: Option<(LinExt, f64)> = None;
+    for mut s in grounded {
+        if s.motor_b <= 0.0 {
+            // a tenth of critical damping of the ground resonance, at least a little
+            s.motor_b = (0.2 * (s.ground_k * s.chain.total_inertia()).sqrt()).max(1e-3 * jt_w(&s));
+        }
+        let lin = effects::fit_linear(data, &data.targets, Lin::Viscous, &s, 60)
+            .map(|r| r.0)
+            .unwrap_or(s);
+        let chi2 = data.chi2_of(&lin);
+        if chi2.is_finite() && best.as_ref().is_none_or(|b| chi2 < b.1) {
+            best = Some((lin, chi2));
+        }
+    }
+    let damped = best
+        .map(|b| b.0)
+        .ok_or(DiagnoseError::NoNominal(top_level(data), n))?;
+    let undamped = renominal::refit_without_damper(data, &damped);
+    Ok((undamped, Some(damped)))
+}
+
 /// The candidates fitted so far, with a note (wall time, or "no fit") per candidate and
 /// the CPU time of each as a stage.
 struct Candidates<'a> {
@@ -1060,6 +1156,12 @@ fn fit_linear_candidates(
     c.fit(Effect::CurrentLoop, || {
         effects::current_loop::fit(data, nom_lin)
     });
+    if nom_lin.ground_spring {
+        c.notes.push(
+            "gravity: not a candidate (the nominal model has the spring to the ground)".into(),
+        );
+        return;
+    }
     c.fit(Effect::Gravity, || {
         effects::gravity::fit(data, nom_lin, idents)
     });
@@ -1174,7 +1276,13 @@ fn fit_extra_mode(
         c.push(None, Effect::UnmodelledMode);
         return None;
     };
-    match effects::gravity::from_ground_mode(&mf) {
+    // with a spring to the ground in the nominal model, a heavy extra body is no gravity
+    let as_ground = if nom_lin.ground_spring {
+        None
+    } else {
+        effects::gravity::from_ground_mode(&mf)
+    };
+    match as_ground {
         // the extra body is the ground: the fit is gravity's (refitted as such too; the
         // better of the two), and no unmodelled mode
         Some(same) => {
@@ -1263,7 +1371,14 @@ fn residual_kind(data: &Data, nominal: &EffectFit) -> ResidualKind {
         .levels
         .iter()
         .enumerate()
-        .map(|(i, l)| distortion::level_distortion(i, l.torque_rms, l.nonexcited.as_ref()))
+        .map(|(i, l)| {
+            let mut d = distortion::level_distortion(i, l.torque_rms, l.nonexcited.as_ref());
+            d.realisation_excess_db = l
+                .spread_var
+                .as_ref()
+                .and_then(|s| distortion::realisation_excess_db(s, &l.var));
+            d
+        })
         .collect();
     fn lines_of(l: &Level) -> distortion::LevelLines<'_> {
         distortion::LevelLines {
@@ -1302,10 +1417,12 @@ fn residual_kind(data: &Data, nominal: &EffectFit) -> ResidualKind {
     });
     let changed =
         changes.iter().any(|c| c.significant) || change_local.is_some_and(|w| w.window.significant);
+    // the same 6 dB for the realisations' spread over the noise as for the detection lines
     let nonlinear = changed
-        || levels
-            .iter()
-            .any(|l| l.detection_excess_db.is_some_and(|d| d > 6.0));
+        || levels.iter().any(|l| {
+            l.detection_excess_db.is_some_and(|d| d > 6.0)
+                || l.realisation_excess_db.is_some_and(|d| d > 6.0)
+        });
     // the nominal model's gap, line by line: its most significant run of lines
     let z2: Vec<Vec<f64>> = data
         .levels

@@ -20,6 +20,7 @@ pub fn exact_data(lin: &LinExt, fs: f64, band_hz: &[f64; 2], lines: usize) -> (D
         h: vec![num_complex::Complex64::new(1.0, 0.0); lines],
         w: vec![1.0; lines],
         io_delay: 0,
+        band_limited: false,
     };
     let kind = FrfKind::DifferencedVelocity;
     let h = model_on(lin, fs, kind, std::slice::from_ref(&probe)).remove(0);
@@ -52,6 +53,7 @@ pub fn exact_data(lin: &LinExt, fs: f64, band_hz: &[f64; 2], lines: usize) -> (D
         torque_rms: 1.0,
         io_delay: 0,
         averages: 8,
+        spread_var: None,
     };
     let data = Data {
         noise: noise::reduced_chi2(&[(lines, 8)]),

@@ -186,6 +186,8 @@ impl Chirp {
             rms_nm: Some(self.rms_nm()),
             design: Some("log_sweep".to_string()),
             blocks: Vec::new(),
+            realisations: Vec::new(),
+            band_limited: false,
         }
     }
 }

@@ -54,4 +54,33 @@ pub struct ExcitationInfo {
     /// ([`crate::frf::estimate_stepped`]). Empty for every other kind.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub blocks: Vec<super::SteppedBlock>,
+    /// Several realisations of one multisine design (the same excited lines, other random
+    /// phases), one steady period of `period_samples` each, in the order recorded; each
+    /// preceded by its own lead-in. With them the FRF is the best linear approximation
+    /// over the realisations ([`crate::frf::estimate_realisations`]) and `periods` counts
+    /// the realisations. Empty for every other excitation.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub realisations: Vec<Realisation>,
+    /// The input column is the excitation as an ADC measured it from an analogue generator
+    /// (band-limited between the samples, e.g. the Silverbox's input voltage), not a
+    /// command held over each sample (the zero-order hold of a drive, the default): the
+    /// diagnosis compares models on the continuous system's response at the lines
+    /// ([`crate::diagnose::lti::Discrete::band_limited`]). `false` when absent.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub band_limited: bool,
+}
+
+/// One realisation of a multisine within a recording ([`ExcitationInfo::realisations`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Realisation {
+    /// Row of the first sample of its steady period (the period runs over `start ..
+    /// start + period_samples`).
+    pub start: usize,
+    /// Samples played before the steady period that repeat the period's last `lead_in`
+    /// samples (the generator ran the period from a point before its start): the
+    /// system's transient settles over them, and on their second half the output's
+    /// difference to the same samples one period later is noise alone (the noise
+    /// estimate of [`crate::frf::estimate_realisations`]). 0 when not known.
+    #[serde(default)]
+    pub lead_in: usize,
 }

@@ -22,7 +22,7 @@ mod synth;
 mod test_util;
 
 pub use chirp::{Chirp, ChirpDesign};
-pub use description::{ExcitationInfo, ExcitationKind};
+pub use description::{ExcitationInfo, ExcitationKind, Realisation};
 pub use error::ExcitationError;
 pub use lines::{band_lines, MIN_PERIOD_SAMPLES};
 pub use multisine::{AmplitudeShape, Multisine, MultisineDesign, PhaseDesign};

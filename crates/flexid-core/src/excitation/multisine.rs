@@ -304,6 +304,8 @@ impl Multisine {
             rms_nm: Some(self.rms_nm()),
             design: Some(self.design.clone()),
             blocks: Vec::new(),
+            realisations: Vec::new(),
+            band_limited: false,
         }
     }
 }

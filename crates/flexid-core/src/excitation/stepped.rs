@@ -177,6 +177,8 @@ impl SteppedBlock {
             rms_nm: Some(self.rms_nm),
             design: Some("stepped_sine".to_string()),
             blocks: Vec::new(),
+            realisations: Vec::new(),
+            band_limited: false,
         }
     }
 }
@@ -228,6 +230,8 @@ impl SteppedSine {
             rms_nm: Some(rms(&self.signal)),
             design: Some("stepped_sine".to_string()),
             blocks: self.blocks.clone(),
+            realisations: Vec::new(),
+            band_limited: false,
         }
     }
 

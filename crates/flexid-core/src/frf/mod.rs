@@ -8,6 +8,9 @@
 //!   averaging over steady periods with the errors-in-variables variance, levels at
 //!   non-excited lines ([`NonExcitedLevels`]) to detect nonlinear distortion; a velocity
 //!   response is freed of the ramp of a constant acceleration (`ramp.rs`).
+//! * [`estimate_realisations`]: several realisations of a multisine, one period each:
+//!   the best linear approximation over them, its variance from their spread (noise and
+//!   stochastic nonlinear distortion) and the noise alone from their lead-ins.
 //! * [`estimate_stepped`]: stepped sine, one line per dwell block by the periodic
 //!   estimator.
 //! * [`estimate_lpm`]: one non-periodic record (a single sweep), the local polynomial
@@ -24,6 +27,7 @@ mod periodic;
 pub mod quantisation;
 pub mod quantisation_spectrum;
 mod ramp;
+mod realisations;
 mod stepped;
 mod support;
 #[cfg(test)]
@@ -39,6 +43,7 @@ pub use lpm::{estimate_lpm, lpm_dof};
 pub use periodic::{
     estimate_periodic, NonExcitedLevels, PeriodicEstimator, DEFAULT_INFER_THRESHOLD,
 };
+pub use realisations::{estimate_realisations, RealisationsEstimate};
 pub use stepped::estimate_stepped;
 pub use support::{supported_band, SupportedBand};
 pub use types::{Frf, FrfKind};

@@ -538,6 +538,8 @@ mod tests {
             rms_nm: None,
             design: None,
             blocks: Vec::new(),
+            realisations: Vec::new(),
+            band_limited: false,
         }
     }
 

@@ -170,6 +170,8 @@ pub fn infer_excitation(torque_nm: &[f64], sample_rate_hz: f64) -> ExcitationInf
         rms_nm: Some(rms(torque_nm)),
         design: None,
         blocks: Vec::new(),
+        realisations: Vec::new(),
+        band_limited: false,
     };
     let Some(per) = find_period(torque_nm) else {
         return other;
@@ -200,6 +202,8 @@ pub fn infer_excitation(torque_nm: &[f64], sample_rate_hz: f64) -> ExcitationInf
         rms_nm: Some(rms(&torque_nm[transient * p..total * p])),
         design: None,
         blocks: Vec::new(),
+        realisations: Vec::new(),
+        band_limited: false,
     }
 }
 

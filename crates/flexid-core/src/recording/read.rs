@@ -356,6 +356,15 @@ pub fn check_excitation_fits(
             )));
         }
     }
+    for (i, r) in e.realisations.iter().enumerate() {
+        let end = r.start.checked_add(e.period_samples);
+        if e.period_samples == 0 || end.is_none_or(|end| end > rows) || r.lead_in > r.start {
+            return Err(err(format!(
+                "excitation.realisations[{i}]: start {} (lead-in {}) with period_samples {} does not fit the recording ({rows} rows)",
+                r.start, r.lead_in, e.period_samples
+            )));
+        }
+    }
     for (i, b) in e.blocks.iter().enumerate() {
         if b.period_samples == 0 || b.period_samples > rows || b.start >= rows {
             return Err(err(format!(

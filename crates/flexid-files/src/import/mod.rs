@@ -17,6 +17,7 @@ mod error;
 mod lines;
 mod mat5;
 mod presets;
+pub mod realisations;
 mod spec;
 #[cfg(test)]
 mod tests;

@@ -58,6 +58,17 @@ pub struct MatSpec {
     pub design: Option<String>,
     /// Free text appended to the sidecar's `source` (units caveats and the like).
     pub notes: String,
+    /// The record holds several realisations of a flat multisine of `period_samples`, one
+    /// steady period each after its own lead-in ([`super::realisations`]): they are found
+    /// by the input's periodicity, the record is cut from the first lead-in to the last
+    /// period's end, and the sidecar lists them (`transient_periods` is not used).
+    pub realisations: bool,
+    /// Subtract each signal's mean over the whole file first (offset errors of the
+    /// acquisition, e.g. the Silverbox's README asks for it).
+    pub remove_mean: bool,
+    /// The input is a measured analogue signal, band-limited between the samples, not a
+    /// command held over each sample ([`ExcitationInfo::band_limited`]; realisations only).
+    pub band_limited: bool,
 }
 
 impl Default for MatSpec {
@@ -79,6 +90,9 @@ impl Default for MatSpec {
             line_threshold: 1e-6,
             design: None,
             notes: String::new(),
+            realisations: false,
+            remove_mean: false,
+            band_limited: false,
         }
     }
 }
@@ -178,6 +192,15 @@ pub(crate) fn build_recording(
     if spec.output_scale != 1.0 {
         source += &format!("; output scaled by {}", spec.output_scale);
     }
+    if spec.remove_mean {
+        let (mu, my) = (mean(&input), mean(&output));
+        input.iter_mut().for_each(|v| *v -= mu);
+        output.iter_mut().for_each(|v| *v -= my);
+        source += &format!("; means removed (input {mu:.6e}, output {my:.6e})");
+    }
+    if let (true, Some(period)) = (spec.realisations, spec.period_samples) {
+        return realisations_recording(path, spec, source, input, output, period, fs);
+    }
 
     let excitation = match spec.period_samples {
         Some(period) => {
@@ -234,6 +257,8 @@ pub(crate) fn build_recording(
                 rms_nm: Some(rms(steady)),
                 design: spec.design.clone(),
                 blocks: Vec::new(),
+                realisations: Vec::new(),
+                band_limited: false,
             })
         }
         None => {
@@ -249,6 +274,8 @@ pub(crate) fn build_recording(
                 rms_nm: Some(rms(&input)),
                 design: spec.design.clone(),
                 blocks: Vec::new(),
+                realisations: Vec::new(),
+                band_limited: false,
             })
         }
     };
@@ -257,6 +284,19 @@ pub(crate) fn build_recording(
         source += &spec.notes;
     }
 
+    Ok(assemble(spec, source, input, output, excitation, fs))
+}
+
+/// The recording: `time_s[k] = k / fs`, the input in the torque column, the output in the
+/// spec's motion column, the sidecar with the rate, the excitation and the source.
+fn assemble(
+    spec: &MatSpec,
+    source: String,
+    input: Vec<f64>,
+    output: Vec<f64>,
+    excitation: Option<ExcitationInfo>,
+    fs: f64,
+) -> Recording {
     let time_s = (0..input.len()).map(|k| k as f64 / fs).collect();
     let mut rec = Recording {
         time_s,
@@ -275,7 +315,86 @@ pub(crate) fn build_recording(
         MotionSignal::Velocity => rec.velocity_rad_s = Some(output),
         MotionSignal::Acceleration => rec.acceleration_rad_s2 = Some(output),
     }
-    Ok(rec)
+    rec
+}
+
+fn mean(x: &[f64]) -> f64 {
+    x.iter().sum::<f64>() / x.len().max(1) as f64
+}
+
+/// A record of several multisine realisations ([`MatSpec::realisations`]): found, cut and
+/// described.
+fn realisations_recording(
+    path: &Path,
+    spec: &MatSpec,
+    mut source: String,
+    input: Vec<f64>,
+    output: Vec<f64>,
+    period: usize,
+    fs: f64,
+) -> Result<Recording, ImportError> {
+    let found = super::realisations::find(&input, period);
+    if found.len() < 2 {
+        return Err(ImportError::Spec {
+            path: path.to_path_buf(),
+            reason: format!(
+                "input `{}`: {} realisation(s) of a {period}-sample period found by its periodicity (a lead-in of at least {} samples repeating one period later), need at least 2",
+                spec.input,
+                found.len(),
+                super::realisations::MIN_RUN
+            ),
+        });
+    }
+    let steady: Vec<usize> = found.iter().map(|f| f.1).collect();
+    let lines = super::realisations::flat_lines(&input, period, &steady);
+    if lines.is_empty() {
+        return Err(ImportError::Spec {
+            path: path.to_path_buf(),
+            reason: format!(
+                "input `{}`: no excited line common to the realisations",
+                spec.input
+            ),
+        });
+    }
+    let (from, to) = (found[0].0, found[found.len() - 1].1 + period);
+    let realisations = super::realisations::described(&found, from);
+    source += &format!(
+        "; {} realisations of a {period}-sample multisine found by the input's periodicity: steady periods at rows {} of the file (0-based), lead-ins of {}-{} samples; cut to rows {from}..{to} of the file; {} excited lines (at least half the median line amplitude in every realisation)",
+        found.len(),
+        steady.iter().map(|s| s.to_string()).collect::<Vec<_>>().join(", "),
+        realisations.iter().map(|r| r.lead_in).min().unwrap_or(0),
+        realisations.iter().map(|r| r.lead_in).max().unwrap_or(0),
+        lines.len(),
+    );
+    if !spec.notes.is_empty() {
+        source += ". ";
+        source += &spec.notes;
+    }
+    let input = input[from..to].to_vec();
+    let output = output[from..to].to_vec();
+    let df = fs / period as f64;
+    let periods: Vec<f64> = realisations
+        .iter()
+        .flat_map(|r| input[r.start..r.start + period].iter().copied())
+        .collect();
+    let excitation = ExcitationInfo {
+        kind: ExcitationKind::Multisine,
+        period_samples: period,
+        periods: realisations.len(),
+        transient_periods: 0,
+        band_hz: match (lines.first(), lines.last()) {
+            (Some(&lo), Some(&hi)) => Some([lo as f64 * df, hi as f64 * df]),
+            _ => None,
+        },
+        excited_lines: lines,
+        peak_nm: Some(periods.iter().fold(0.0, |m, v| f64::max(m, v.abs()))),
+        rms_nm: Some(rms(&periods)),
+        design: spec.design.clone(),
+        blocks: Vec::new(),
+        realisations,
+        band_limited: spec.band_limited,
+    };
+    Ok(assemble(spec, source, input, output, Some(excitation), fs))
 }
 
 fn rms(x: &[f64]) -> f64 {

@@ -74,6 +74,8 @@ fn round_trip_is_bit_identical() {
                 rms_nm: None,
                 design: Some("test".into()),
                 blocks: Vec::new(),
+                realisations: Vec::new(),
+                band_limited: false,
             }),
             source: Some("unit test, with \"quotes\"".into()),
             io_delay_samples: Some(1),
@@ -187,6 +189,47 @@ fn sidecar_excitation_contradicting_the_rows_is_refused() {
         assert!(e.to_string().contains(key), "{e} does not name {key}");
     }
     assert!(parse_recording(&csv, Some(&side("20", "4", "1,10"))).is_ok());
+}
+
+/// Realisations of a multisine whose period runs past the rows, or whose lead-in starts
+/// before the first row, are refused naming `excitation.realisations[i]`; ones inside are
+/// read back.
+#[test]
+fn sidecar_realisations_outside_the_rows_are_refused() {
+    let side = |reals: &str| {
+        format!(
+            r#"{{"sample_rate_hz": 1000, "excitation": {{"kind": "multisine", "period_samples": 20, "periods": 2, "transient_periods": 0, "excited_lines": [1], "realisations": [{reals}]}}}}"#
+        )
+    };
+    let csv = csv_rows(100);
+    for (s, key) in [
+        (
+            side(r#"{"start": 10, "lead_in": 5}, {"start": 90, "lead_in": 5}"#),
+            "realisations[1]",
+        ),
+        (
+            side(r#"{"start": 4, "lead_in": 5}, {"start": 40, "lead_in": 5}"#),
+            "realisations[0]",
+        ),
+        (
+            side(r#"{"start": 18446744073709551615, "lead_in": 0}"#),
+            "realisations[0]",
+        ),
+    ] {
+        let e = parse_recording(&csv, Some(&s)).unwrap_err();
+        assert!(matches!(e, RecordingError::Sidecar { .. }), "{e}");
+        assert!(e.to_string().contains(key), "{e} does not name {key}");
+    }
+    let ok = parse_recording(
+        &csv,
+        Some(&side(
+            r#"{"start": 10, "lead_in": 5}, {"start": 60, "lead_in": 5}"#,
+        )),
+    )
+    .unwrap();
+    let e = ok.recording.sidecar.excitation.unwrap();
+    assert_eq!(e.realisations.len(), 2);
+    assert_eq!(e.realisations[1].start, 60);
 }
 
 /// A line without an end (a file of one huge line, `/dev/zero`) is refused at

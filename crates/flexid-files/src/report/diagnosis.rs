@@ -98,6 +98,12 @@ pub fn render(d: &Diagnosis) -> String {
                 _ => "none (no odd random-phase design)".into(),
             }
         );
+        if let Some(e) = l.realisation_excess_db {
+            let _ = writeln!(
+                s,
+                "    spread over the realisations {e:+.1} dB over the noise alone (median over the lines: stochastic nonlinear distortion when well above 0 dB)"
+            );
+        }
     }
     for c in &r.changes {
         let _ = writeln!(

@@ -36,7 +36,7 @@ pub fn fit(data: &Data, nominal: &LinExt) -> Option<EffectFit> {
             continue;
         };
         let l = m.current_loop.unwrap();
-        let i0 = 3 * m.chain.masses() - 2;
+        let i0 = super::nominal_params(&m, k);
         let f3 = l.bandwidth_hz * minus_3db_ratio(l.zeta, order);
         let std3 = if order == 1 {
             log_std(&r, i0, f3)

@@ -19,5 +19,6 @@ pub fn fit(data: &Data, nominal: &LinExt) -> Option<EffectFit> {
         2.0 * u,
         true,
         |tc| Nl::Friction { tc },
+        |_| 0.0,
     )
 }

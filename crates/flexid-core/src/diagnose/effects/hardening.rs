@@ -10,6 +10,9 @@
 //!   level) lies between 1 % and 100 times `J_t ω_min²`, the stiffness that would put a
 //!   ground resonance at the lowest excited line: below it the spring is invisible in the
 //!   band, above it the nominal free chain would not have fitted the low lines at all.
+//!   With a spring to the ground in the nominal model (`--ground-spring`), between a
+//!   thousandth of that spring and all of it (the linear spring, fitted with the chain,
+//!   gives the rest back).
 //!
 //! The better of the two (lower chi²) is the candidate; its parameters say which.
 
@@ -84,17 +87,36 @@ pub fn fit_ground(data: &Data, nominal: &LinExt) -> Option<EffectFit> {
     if !(sigma > 0.0 && sigma.is_finite()) {
         return None;
     }
-    let k_ref = nominal.chain.total_inertia() * (2.0 * std::f64::consts::PI * data.f_min()).powi(2);
-    let k3_of = |ratio: f64| ratio * k_ref / ground_equivalent(1.0, sigma);
+    let k3_of = |k_eq: f64| k_eq / ground_equivalent(1.0, sigma);
+    let (lo, hi) = if nominal.ground_spring && nominal.ground_k > 0.0 {
+        // a nominal spring to the ground was fitted to the measurement, the cubic spring's
+        // equivalent stiffness included: it is a part of that stiffness, from a thousandth
+        // (a 0.05 % shift of the ground resonance) to all of it
+        (k3_of(1e-3 * nominal.ground_k), k3_of(nominal.ground_k))
+    } else {
+        let k_ref =
+            nominal.chain.total_inertia() * (2.0 * std::f64::consts::PI * data.f_min()).powi(2);
+        (k3_of(1e-2 * k_ref), k3_of(1e2 * k_ref))
+    };
+    // with a linear spring to the ground in the nominal model, the cubic one's equivalent
+    // stiffness is taken from it at each trial k3 (the level's linearised stiffness kept)
+    let grounded = nominal.ground_spring;
     let mut e = fit_nonlinear(
         data,
         nominal,
         Effect::HardeningStiffness,
         "ground_k3_nm_per_rad3",
-        k3_of(1e-2),
-        k3_of(1e2),
+        lo,
+        hi,
         false,
         |k3| Nl::GroundCubic { k3 },
+        |k3| {
+            if grounded {
+                ground_equivalent(k3, sigma)
+            } else {
+                0.0
+            }
+        },
     )?;
     e.params.push(EffectFit::param("to_ground", 1.0, 0.0));
     Some(e)

@@ -109,10 +109,27 @@ fn chain_of(t: &[f64], n: usize) -> Option<Chain> {
     .ok()
 }
 
+/// Whether `m`'s ground spring is a parameter of the fit of extension `k`: a nominal
+/// model with a ground spring ([`LinExt::ground_spring`]) fits it with the chain, except in
+/// gravity's fit, whose own parameter it is.
+fn fits_ground(m: &LinExt, k: Lin) -> bool {
+    m.ground_spring && k != Lin::Gravity
+}
+
+/// Number of leading entries of [`theta`] that belong to the nominal model: the chain's
+/// `3n - 2` log-parameters and, with a ground spring in the nominal model, its log-stiffness
+/// (the extension's own parameters follow).
+pub fn nominal_params(m: &LinExt, k: Lin) -> usize {
+    3 * m.chain.masses() - 2 + usize::from(fits_ground(m, k))
+}
+
 /// Parameter vector of `m` for extension `k`.
 pub fn theta(m: &LinExt, k: Lin) -> Vec<f64> {
     let mut t = chain_theta(&m.chain);
     let fs_guard = 1e-12;
+    if fits_ground(m, k) {
+        t.push(m.ground_k.max(fs_guard).ln());
+    }
     match k {
         Lin::None | Lin::Mode => {}
         Lin::Delay => t.push(m.delay_s * 1e3),
@@ -139,7 +156,16 @@ pub fn theta(m: &LinExt, k: Lin) -> Vec<f64> {
 pub fn build_on(base: &LinExt, t: &[f64], n: usize, k: Lin) -> Option<LinExt> {
     let mut m = base.clone();
     m.chain = chain_of(t, n)?;
-    let e = &t[3 * n - 2..];
+    let mut at = 3 * n - 2;
+    if fits_ground(base, k) {
+        let g = *t.get(at)?;
+        if !g.is_finite() || g.abs() > 60.0 {
+            return None;
+        }
+        m.ground_k = g.exp();
+        at += 1;
+    }
+    let e = t.get(at..)?;
     match k {
         Lin::None | Lin::Mode => {}
         Lin::Delay => m.delay_s = (e[0] * 1e-3).max(0.0),
@@ -189,6 +215,8 @@ pub struct Target {
     pub h: Vec<Complex64>,
     pub w: Vec<f64>,
     pub io_delay: u32,
+    /// The level's input is band-limited, not held ([`Discrete::band_limited`]).
+    pub band_limited: bool,
 }
 
 /// Model FRF per level on lines `f` of each target.
@@ -198,12 +226,13 @@ pub fn model_on(
     kind: crate::frf::FrfKind,
     targets: &[Target],
 ) -> Vec<Vec<Complex64>> {
-    let mut cache: Option<(u32, Discrete)> = None;
+    let mut cache: Option<((u32, bool), Discrete)> = None;
     targets
         .iter()
         .map(|t| {
-            if cache.as_ref().map(|c| c.0) != Some(t.io_delay) {
-                cache = Some((t.io_delay, Discrete::new(m, fs, t.io_delay)));
+            let key = (t.io_delay, t.band_limited);
+            if cache.as_ref().map(|c| c.0) != Some(key) {
+                cache = Some((key, Discrete::with_input(m, fs, t.io_delay, t.band_limited)));
             }
             cache.as_ref().unwrap().1.frf_lines(&t.f, kind)
         })
@@ -236,7 +265,7 @@ pub fn fit_linear(
 ) -> Option<(LinExt, LmResult)> {
     let n = start.chain.masses();
     let t0 = theta(start, k);
-    debug_assert_eq!(t0.len(), 3 * n - 2 + k.extra());
+    debug_assert_eq!(t0.len(), nominal_params(start, k) + k.extra());
     let r = minimise(&t0, iters, |t| {
         residuals(&build_on(start, t, n, k)?, data, targets)
     })?;
@@ -295,7 +324,7 @@ pub fn prefit_then_joint(
 ) -> Option<(LinExt, LmResult)> {
     let n = start.chain.masses();
     let t0 = theta(start, k);
-    let nc = 3 * n - 2;
+    let nc = nominal_params(start, k);
     let chain_t = t0[..nc].to_vec();
     let r0 = minimise(&t0[nc..], 30, |e| {
         let mut t = chain_t.clone();

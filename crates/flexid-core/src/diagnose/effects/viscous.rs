@@ -66,9 +66,8 @@ pub fn nominal_with_viscous(
     };
     let lines = data.lines().max(1) as f64;
     let (c0, c1) = (data.chi2_of(nominal), data.chi2_of(&m));
-    let n = m.chain.masses();
     let excess = leverage_weighted_excess(data, &m);
-    let std = log_std(&r, 3 * n - 2, m.motor_b) * excess.sqrt();
+    let std = log_std(&r, super::nominal_params(&m, Lin::Viscous), m.motor_b) * excess.sqrt();
     // significance by the likelihood ratio with the local dispersion (quasi-likelihood):
     // z² = (chi²_without - chi²_with) / dispersion where the damper acts. The Wald form
     // b/std can say 0.2 sigma for a damper that removes 60 % of chi² (a current-loop plant

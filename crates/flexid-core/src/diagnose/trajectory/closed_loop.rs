@@ -161,6 +161,8 @@ pub fn simulate(p: &Plant, s: &Setup) -> Recording {
                 rms_nm: None,
                 design: None,
                 blocks: Vec::new(),
+                realisations: Vec::new(),
+                band_limited: false,
             }),
             source: Some("closed-loop simulation of a prismatic axis (test)".into()),
             ..Sidecar::default()

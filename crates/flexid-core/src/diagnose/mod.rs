@@ -293,7 +293,20 @@ pub fn prepare(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Data, Diagn
             spread = Some(std::mem::replace(&mut e.frf.var, v));
             e.averages = periods;
         }
-        let keep = e.frf.usable_lines();
+        // the lines that carry information ([`crate::frf::supported_band`]): beyond the
+        // band where the response stands out of its own scatter a line holds noise, whose
+        // gap says nothing about the model (and whose variance, where an encoder's counts
+        // dominate, is the least certain)
+        let supported = crate::frf::supported_band(&e.frf).map(|s| s.band_hz);
+        let keep: Vec<usize> = e
+            .frf
+            .usable_lines()
+            .into_iter()
+            .filter(|&k| {
+                let f = e.frf.freq_hz[k];
+                supported.is_none_or(|[lo, hi]| f >= lo && f <= hi)
+            })
+            .collect();
         if keep.is_empty() {
             return Err(DiagnoseError::NoUsableLines {
                 index: i,
@@ -374,6 +387,11 @@ pub struct ResidualKind {
     pub reduced_chi2: f64,
     /// Within the noise over the whole band ([`Data::within_noise`]).
     pub within_noise: bool,
+    /// The FRF changes between two levels beyond both variances, over the whole band or on
+    /// a run of lines ([`distortion::level_change`], [`scan`]): amplitude dependence, which
+    /// no linear model has (a nominal chain fitted to every level at once cannot be right
+    /// for each), so the gap is real wherever the chi² over the band says.
+    pub changed: bool,
     pub nonlinear: bool,
     pub linear_model_error: bool,
     /// The most significant run of lines of the nominal model's gap ([`scan`]; its
@@ -383,6 +401,14 @@ pub struct ResidualKind {
     pub change_local: Option<Located>,
     pub levels: Vec<LevelDistortion>,
     pub changes: Vec<LevelChange>,
+}
+
+impl ResidualKind {
+    /// Whether the gap is more than noise: the nominal model's chi² over the band beyond
+    /// the noise's threshold, or the FRF changing between levels ([`ResidualKind::changed`]).
+    pub fn gap_is_real(&self) -> bool {
+        !self.within_noise || self.changed
+    }
 }
 
 /// A scan's most significant window, with the pair of levels it compares (for the
@@ -862,7 +888,7 @@ fn diagnose_from(
     };
     let verdict = match effects.first() {
         Some(s) => s.effect,
-        None if !residual.within_noise => Effect::Unexplained,
+        None if residual.gap_is_real() => Effect::Unexplained,
         None => Effect::None,
     };
     let winner = effects.first().map(|s| s.fit.clone());
@@ -1315,7 +1341,8 @@ fn fit_amplitude_candidates(
     force: bool,
     c: &mut Candidates,
 ) {
-    if c.explained(data) && !force {
+    // a linear candidate that leaves only noise explains no change between levels
+    if c.explained(data) && !force && !residual.changed {
         c.notes.push(
             "amplitude-dependent candidates not simulated: a linear candidate leaves only noise"
                 .into(),
@@ -1458,6 +1485,7 @@ fn residual_kind(data: &Data, nominal: &EffectFit) -> ResidualKind {
     ResidualKind {
         reduced_chi2: reduced,
         within_noise,
+        changed,
         nonlinear,
         linear_model_error: !within_noise && !changed,
         local,

@@ -78,7 +78,7 @@ pub fn rank(
     // is significantly different from zero: significance before a name
     let win = r.iter().find_map(|(rk, i)| {
         let i = (*i)?;
-        (!residual.within_noise && rk.score > 0.0 && defining_parameter_significant(&fits[i]))
+        (residual.gap_is_real() && rk.score > 0.0 && defining_parameter_significant(&fits[i]))
             .then_some(i)
     });
     (r.into_iter().map(|x| x.0).collect(), win)

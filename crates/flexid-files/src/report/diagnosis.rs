@@ -148,7 +148,7 @@ pub fn render(d: &Diagnosis) -> String {
     let _ = writeln!(
         s,
         "  => noise {}, nonlinear distortion {}, linear model error {}",
-        if r.within_noise { "only" } else { "not alone" },
+        if r.gap_is_real() { "not alone" } else { "only" },
         if r.nonlinear { "present" } else { "not seen" },
         if r.linear_model_error {
             "present"

@@ -241,6 +241,7 @@ pub fn diagnose(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Diagnosis,
     let residual = ResidualKind {
         reduced_chi2: t.reduced_chi2(&t.rigid),
         within_noise: t.within_noise(&t.rigid),
+        changed: false,
         nonlinear: t.coulomb_named,
         linear_model_error: false,
         local: None,

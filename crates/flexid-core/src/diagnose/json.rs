@@ -84,6 +84,7 @@ fn body_json(d: &Diagnosis) -> Value {
         "residual": {
             "reduced_chi2": num(d.residual.reduced_chi2),
             "within_noise": d.residual.within_noise,
+            "changed_between_levels": d.residual.changed,
             "nonlinear_distortion": d.residual.nonlinear,
             "linear_model_error": d.residual.linear_model_error,
             "levels": d.residual.levels.iter().map(|l| json!({

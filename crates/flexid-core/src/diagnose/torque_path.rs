@@ -466,20 +466,18 @@ impl Sampled {
         let Some((phi, ga, gb, c)) = &self.lp else {
             return zm * zi;
         };
-        let g: Vec<Complex64> = (0..phi.nrows())
-            .map(|i| ga[(i, 0)] * zm * zi + gb[(i, 0)] * zm)
-            .collect();
-        let x = match phi.nrows() {
-            1 => vec![g[0] / (z - phi[(0, 0)])],
-            _ => {
-                // (zI - Phi) x = g, 2 x 2 by Cramer's rule
-                let (a, b) = (z - phi[(0, 0)], -phi[(0, 1)]);
-                let (cc, d) = (-phi[(1, 0)], z - phi[(1, 1)]);
-                let det = a * d - b * cc;
-                vec![(g[0] * d - b * g[1]) / det, (a * g[1] - cc * g[0]) / det]
-            }
-        };
-        (0..x.len()).map(|i| c[(0, i)] * x[i]).sum()
+        // (zI - Phi) x = Gamma_a z^(-m-1) + Gamma_b z^(-m), one or two states, on the stack
+        let g = |i: usize| ga[(i, 0)] * zm * zi + gb[(i, 0)] * zm;
+        if phi.nrows() == 1 {
+            return c[(0, 0)] * g(0) / (z - phi[(0, 0)]);
+        }
+        // 2 x 2 by Cramer's rule
+        let (a, b) = (z - phi[(0, 0)], -phi[(0, 1)]);
+        let (cc, d) = (-phi[(1, 0)], z - phi[(1, 1)]);
+        let det = a * d - b * cc;
+        let x0 = (g(0) * d - b * g(1)) / det;
+        let x1 = (a * g(1) - cc * g(0)) / det;
+        c[(0, 0)] * x0 + c[(0, 1)] * x1
     }
 }
 

@@ -54,6 +54,9 @@ use std::time::{Duration, Instant};
 
 /// Cycle rates measured by default [Hz].
 const RATES_HZ: [f64; 3] = [1000.0, 2000.0, 4000.0];
+/// The drives' SYNC-loss window [s] (`flexid-vdrive --sync-loss-cycles`).
+const SYNC_LOSS_WINDOW_S: f64 = 0.1;
+
 /// `SCHED_FIFO` priority of the `flexid-vdrive` processes (above the cycle thread's 80: a
 /// drive's firmware answers whatever the master's host does).
 const VDRIVE_FIFO_PRIORITY: &str = "85";
@@ -207,12 +210,13 @@ async fn follow(base: String, id: String) -> (Vec<u64>, Sse) {
     panic!("sweep {id}: the event stream closed before its end");
 }
 
-fn pct_ms(sorted: &[u64], q: f64) -> f64 {
+/// The `q` quantile of `sorted` [ns] as `"1.5 ms"`, or `"-"` when nothing was timed.
+fn pct_ms(sorted: &[u64], q: f64) -> String {
     if sorted.is_empty() {
-        return f64::NAN;
+        return "-".to_string();
     }
     let i = ((sorted.len() - 1) as f64 * q).round() as usize;
-    sorted[i] as f64 / 1e6
+    format!("{:.1} ms", sorted[i] as f64 / 1e6)
 }
 
 /// `p50 / p99 / p99.9 / max` in µs.
@@ -261,6 +265,10 @@ async fn run_rate(rate_hz: f64, quick: bool, notes: &mut Vec<String>) -> String 
         "udp, 100 Mbit/s (EtherCAT-class)".to_string()
     };
     let max_lost = (LOST_BUDGET_SHARE * duration_s * rate_hz).ceil() as u64;
+    // the drives' SYNC-loss window: 100 ms, so that one stall of a shared host shows up
+    // as lateness here instead of ending the sweep (the 3-period supervision is tested in
+    // tests/e2e_sweep.rs)
+    let sync_loss_cycles = ((SYNC_LOSS_WINDOW_S * rate_hz).ceil() as u16).to_string();
     let ports = [43331u16, 43332];
     let _vds: Vec<VDrive> = ports
         .iter()
@@ -269,7 +277,12 @@ async fn run_rate(rate_hz: f64, quick: bool, notes: &mut Vec<String>) -> String 
                 &format!("udp:{GROUP}:{p}"),
                 &plant_path(),
                 "realtime",
-                &["--fifo-priority", VDRIVE_FIFO_PRIORITY],
+                &[
+                    "--fifo-priority",
+                    VDRIVE_FIFO_PRIORITY,
+                    "--sync-loss-cycles",
+                    &sync_loss_cycles,
+                ],
             )
         })
         .collect();
@@ -315,14 +328,14 @@ async fn run_rate(rate_hz: f64, quick: bool, notes: &mut Vec<String>) -> String 
         let share = t.cpu_ns as f64 / t.wall.as_nanos() as f64;
         let bare_sum = t.bare.lateness.summary();
         let (cycle_txt, ratio) = match &t.cycle {
-            Some(c) => (
+            Some(c) if c.count > 0 => (
                 lateness_us(c),
                 format!(
                     "**{:.2}x**",
                     c.p99_ns as f64 / bare_sum.p99_ns.max(1) as f64
                 ),
             ),
-            None => ("-".to_string(), "-".to_string()),
+            _ => ("-".to_string(), "-".to_string()),
         };
         let stalls = 100.0 * t.bare.overruns as f64 / bare_sum.count.max(1) as f64;
         let tries = if failed.is_empty() {
@@ -332,7 +345,7 @@ async fn run_rate(rate_hz: f64, quick: bool, notes: &mut Vec<String>) -> String 
         };
         let _ = writeln!(
             rows,
-            "| {rate} | {bus} | {n} | {:.1} % | {:.1} % | {:.1} ms | {:.1} ms | {cycle_txt} | {} | {ratio} | {stalls:.2} % | {}{tries} |",
+            "| {rate} | {bus} | {n} | {:.1} % | {:.1} % | {} | {} | {cycle_txt} | {} | {ratio} | {stalls:.2} % | {}{tries} |",
             100.0 * share,
             100.0 * (share - idle) / n as f64,
             pct_ms(&t.bode_ns, 0.5),
@@ -492,7 +505,8 @@ async fn main() {
          thread is held off its CPU now and then (the bare loop's lateness and host stalls \
          show how much in this run). Supervisors: lost-feedback budget \
          `limits.max_lost_tpdos` = {:.0} % of each sweep's cycles; the master fails a cycle \
-         after {} consecutive cycles without feedback and at least {} ms of them.\n\n\
+         after {} consecutive cycles without feedback and at least {} ms of them; the drives \
+         fault after {:.0} ms without SYNC.\n\n\
          | rate | bus | axes sweeping | daemon CPU | per axis (minus idle) | period end -> Bode p50 | p99 | cycle thread lateness | bare loop lateness | p99 cycle/bare | host stalls | sweeps |\n\
          |---|---|---|---|---|---|---|---|---|---|---|---|",
         if quick { 3 } else { 10 },
@@ -501,6 +515,7 @@ async fn main() {
         100.0 * LOST_BUDGET_SHARE,
         master.max_missed_cycles,
         master.max_missed_time.as_millis(),
+        SYNC_LOSS_WINDOW_S * 1e3,
     );
     let mut notes = Vec::new();
     for r in rates {

@@ -293,13 +293,24 @@ fn master_killed_mid_sweep_the_drive_stops_on_the_lost_sync() {
 
 /// `flexid sweep --clock realtime` at 250 Hz against the real-time drive, `cmd` run to its
 /// end or killed by `kill`; a third node records every frame's receive stamp meanwhile.
+///
+/// `sync_loss_cycles` is the drive's SYNC-loss window in periods (`--sync-loss-cycles`).
+/// Returns `None` when the sweep ended before its second period although it was to be
+/// killed there (the drive faulted first: a start-up stall of a shared host longer than
+/// the window).
 fn realtime_session(
     port: u16,
     kill_after_period: bool,
-) -> (Vec<(Instant, flexid_can::CanFrame)>, tempfile::TempDir) {
+    sync_loss_cycles: u16,
+) -> Option<(Vec<(Instant, flexid_can::CanFrame)>, tempfile::TempDir)> {
     use flexid_can::{CanBus, UdpConfig, UdpMulticastBus};
     let bus_name = bus(port);
-    let _vd = VDrive::start_clocked(&bus_name, &plant_path(), "realtime");
+    let _vd = VDrive::start_with(
+        &bus_name,
+        &plant_path(),
+        "realtime",
+        &["--sync-loss-cycles", &sync_loss_cycles.to_string()],
+    );
     let group: std::net::IpAddr = GROUP.parse().unwrap();
     let mut watch = UdpMulticastBus::open(UdpConfig::group_port(group, port)).unwrap();
     let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
@@ -341,16 +352,20 @@ fn realtime_session(
             }
         }
     });
+    let mut ended_early = false;
     if kill_after_period {
-        rx.recv_timeout(Duration::from_secs(60))
-            .expect("the sweep reached its second period");
-        child.kill().unwrap();
+        match rx.recv_timeout(Duration::from_secs(60)) {
+            Ok(()) => child.kill().unwrap(),
+            Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => ended_early = true,
+            Err(e) => panic!("the sweep did not reach its second period within 60 s: {e}"),
+        }
     }
     let _ = wait(&mut child, Duration::from_secs(120));
     let _ = h.join();
     std::thread::sleep(Duration::from_millis(300));
     stop.store(true, std::sync::atomic::Ordering::Relaxed);
-    (rec.join().unwrap(), dir)
+    let frames = rec.join().unwrap();
+    (!ended_early).then_some((frames, dir))
 }
 
 /// Issue 16, item 1: exactly one SYNC per cycle over a whole real-time sweep, enable and
@@ -361,7 +376,10 @@ fn a_realtime_sweep_sends_one_sync_per_cycle() {
     if !loopback_multicast() {
         return;
     }
-    let (frames, _dir) = realtime_session(43226, false);
+    // the drive's SYNC-loss window at 100 ms (25 periods): this test is about the
+    // master's SYNC spacing, and a start-up stall of a shared host must not fault the drive
+    // before the spacing is seen (the 3-period window is the next test's)
+    let (frames, _dir) = realtime_session(43226, false, 25).expect("a sweep to its end");
     let syncs: Vec<Instant> = frames
         .iter()
         .filter(|(_, f)| f.id() == flexid_can::CanId::Standard(0x080))
@@ -394,7 +412,17 @@ fn realtime_master_killed_the_drive_stops_within_3_sync_periods() {
     if !loopback_multicast() {
         return;
     }
-    let (frames, _dir) = realtime_session(43227, true);
+    // up to 3 tries: a try whose drive faulted before the kill (a stall of the shared host
+    // longer than 3 periods while the master still ran) measures nothing of the kill
+    let (frames, _dir) = (1..=3)
+        .find_map(|attempt| {
+            let got = realtime_session(43227, true, 3);
+            if got.is_none() {
+                eprintln!("attempt {attempt}: the drive faulted before the kill (host stall)");
+            }
+            got
+        })
+        .expect("in 3 tries the sweep never reached its second period");
     let emcy = frames
         .iter()
         .position(|(_, f)| f.id() == flexid_can::CanId::Standard(0x085) && f.data().len() == 8)

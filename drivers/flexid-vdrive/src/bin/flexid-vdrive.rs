@@ -63,6 +63,11 @@ struct Cli {
     /// Serve the bus under `SCHED_FIFO` at this priority (1..=99) with locked memory.
     #[arg(long, value_parser = clap::value_parser!(u8).range(1..=99))]
     fifo_priority: Option<u8>,
+    /// SYNC-loss supervision: this many communication cycle periods (0x1006) without
+    /// SYNC in Operation enabled fault the drive (EMCY 0x8700); 0 turns it off. Overrides
+    /// the plant file's `[drive] sync_loss_cycles` (default 3).
+    #[arg(long)]
+    sync_loss_cycles: Option<u16>,
 }
 
 fn serve<B: CanBus>(
@@ -138,6 +143,9 @@ fn main() -> ExitCode {
             return ExitCode::from(2);
         }
         plant.drive.node_id = n;
+    }
+    if let Some(n) = cli.sync_loss_cycles {
+        plant.drive.sync_loss_cycles = n;
     }
     let spec = match BusSpec::parse(&cli.bus) {
         Ok(s) => s,

@@ -376,27 +376,64 @@ pub(crate) fn mobility_equivalent(frf: &Frf) -> Frf {
 }
 
 /// The repeating quantisation error of a periodic record on a grid of step `q`, per line
-/// of a period ([`frf::quantisation_spectrum`]): the noise behind the counts from the
-/// period-to-period scatter of the steady periods, the speed from their mean at the
-/// excited lines (without those, e.g. lines to be inferred, the power spread evenly).
+/// of a period ([`frf::quantisation_spectrum`]): the part of the error two periods share
+/// beyond what their scatter holds ([`frf::quantisation_correlation`]: the slow wander
+/// between periods and the noise behind the counts from the steady periods), placed by
+/// the speed of their mean at the excited lines (without those, e.g. lines to be inferred,
+/// spread evenly). Where the periods are too short to tell the wander from the noise, the
+/// whole scatter is taken as noise ([`frf::quantisation::noise_std_from_scatter`]).
 fn repeating_per_line(
     q: f64,
     signal: &[f64],
     info: &crate::excitation::ExcitationInfo,
 ) -> Option<Vec<f64>> {
+    use frf::quantisation_spectrum::MAX_HARMONIC;
     let n = info.period_samples.max(1);
     let start = (info.transient_periods * n).min(signal.len());
     let periods = info.periods.min((signal.len() - start) / n);
     let steady = &signal[start..];
-    let scatter = frf::quantisation::scatter_std(steady, n, periods).unwrap_or(0.0);
-    let sigma = frf::quantisation::noise_std_from_scatter(q, scatter);
+    let c = q * q / (2.0 * std::f64::consts::PI.powi(2));
+    // the gains of the sawtooth's harmonics and the power of those beyond MAX_HARMONIC
+    let (gains, tail) =
+        match frf::quantisation_correlation::PeriodOffsets::measure(steady, n, periods, q) {
+            Some(offsets) => {
+                let g = offsets.gains(offsets.noise_std());
+                let tail: f64 = g
+                    .iter()
+                    .enumerate()
+                    .skip(MAX_HARMONIC)
+                    .map(|(i, g)| c / ((i + 1) * (i + 1)) as f64 * g)
+                    .sum();
+                (g[..MAX_HARMONIC].to_vec(), tail.max(0.0))
+            }
+            None => {
+                let scatter = frf::quantisation::scatter_std(steady, n, periods).unwrap_or(0.0);
+                let sigma = frf::quantisation::noise_std_from_scatter(q, scatter);
+                let damp = 4.0 * std::f64::consts::PI.powi(2) * (sigma / q).powi(2);
+                let g: Vec<f64> = (1..=MAX_HARMONIC)
+                    .map(|k| (-damp * (k * k) as f64).exp())
+                    .collect();
+                let taken: f64 = g
+                    .iter()
+                    .enumerate()
+                    .map(|(i, g)| c / ((i + 1) * (i + 1)) as f64 * g)
+                    .sum();
+                let all = frf::quantisation::repeating_variance(q, sigma);
+                (g, (all - taken).max(0.0))
+            }
+        };
     match frf::quantisation_spectrum::periodic_speed(steady, n, periods, &info.excited_lines) {
-        Some(speed) => Some(frf::quantisation_spectrum::repeating_spectrum(
-            q, sigma, &speed,
+        Some(speed) => Some(frf::quantisation_spectrum::shared_spectrum(
+            q, &gains, tail, &speed,
         )),
-        None => Some(vec![
-            frf::quantisation::repeating_variance(q, sigma);
-            n / 2 + 1
-        ]),
+        None => {
+            let total: f64 = gains
+                .iter()
+                .enumerate()
+                .map(|(i, g)| c / ((i + 1) * (i + 1)) as f64 * g)
+                .sum::<f64>()
+                + tail;
+            Some(vec![total.max(0.0); n / 2 + 1])
+        }
     }
 }

@@ -25,6 +25,7 @@ mod error;
 pub mod lpm;
 mod periodic;
 pub mod quantisation;
+pub mod quantisation_correlation;
 pub mod quantisation_spectrum;
 mod ramp;
 mod realisations;

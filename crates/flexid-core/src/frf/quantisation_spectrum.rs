@@ -32,7 +32,7 @@ pub const SMOOTH_LINES: usize = 4;
 /// holds about `6/(π² K)` of the power (1.9 % at 32), which is then spread evenly (the
 /// high harmonics fold over the band many times: nearly even anyway). 128 cost 0.1 s per
 /// diagnosis of two 16384-sample periods, a twentieth of the speed target.
-const MAX_HARMONIC: usize = 32;
+pub const MAX_HARMONIC: usize = 32;
 
 /// The repeating quantisation error's power per line `0..=n/2` of a period of `n` samples,
 /// as a white-equivalent power [(signal unit)²]: the variance of a white sequence that
@@ -43,19 +43,37 @@ const MAX_HARMONIC: usize = 32;
 /// sample of one period [signal unit per sample]. Its lines sum (times `2/n`) to
 /// [`super::quantisation::repeating_variance`]`(q, sigma)`.
 pub fn repeating_spectrum(q: f64, sigma: f64, speed: &[f64]) -> Vec<f64> {
+    let damp = 4.0 * PI * PI * (sigma / q).powi(2);
+    let gains: Vec<f64> = (1..=MAX_HARMONIC)
+        .map(|k| (-damp * (k * k) as f64).exp())
+        .collect();
+    let c = q * q / (2.0 * PI * PI);
+    let taken: f64 = (1..=MAX_HARMONIC)
+        .map(|k| c / (k * k) as f64 * gains[k - 1])
+        .sum();
+    let tail = (super::quantisation::repeating_variance(q, sigma) - taken).max(0.0);
+    shared_spectrum(q, &gains, tail, speed)
+}
+
+/// [`repeating_spectrum`] for harmonics that repeat by their own gains `g_k` (`gains[k-1]`,
+/// from 1 up to at most [`MAX_HARMONIC`]; harmonic `k` has the power `q²/(2π² k²) g_k`)
+/// and a `tail` power [(signal unit)²] of the harmonics beyond, spread evenly: the error
+/// two periods share when the axis wanders between them
+/// ([`super::quantisation_correlation`]). A gain may be negative (periods whose errors
+/// tend to cancel); the per-line power is kept at zero or above.
+pub fn shared_spectrum(q: f64, gains: &[f64], tail: f64, speed: &[f64]) -> Vec<f64> {
     let n = speed.len();
     let half = n / 2;
     let mut power = vec![0.0; half + 1];
     if n == 0 || !(q > 0.0) {
         return power;
     }
-    let damp = 4.0 * PI * PI * (sigma / q).powi(2);
     let c = q * q / (2.0 * PI * PI);
-    let mut placed = 0.0;
-    for k in 1..=MAX_HARMONIC {
-        let k2 = (k * k) as f64;
-        let harmonic = c / k2 * (-damp * k2).exp();
-        if harmonic < 1e-9 * placed {
+    let mut placed = 0.0_f64;
+    for (i, g) in gains.iter().take(MAX_HARMONIC).enumerate() {
+        let k = i + 1;
+        let harmonic = c / (k * k) as f64 * g;
+        if harmonic.abs() < 1e-9 * placed.abs() {
             break;
         }
         placed += harmonic;
@@ -69,14 +87,15 @@ pub fn repeating_spectrum(q: f64, sigma: f64, speed: &[f64]) -> Vec<f64> {
             power[line] += share;
         }
     }
-    // the tail beyond the last harmonic taken, spread evenly
-    let tail = (super::quantisation::repeating_variance(q, sigma) - placed).max(0.0);
     for p in power.iter_mut() {
         *p += tail / (half + 1) as f64;
     }
     // per-line power -> white-equivalent (a white sequence of variance P puts 2P/n on a line)
     let white: Vec<f64> = power.iter().map(|p| p * n as f64 / 2.0).collect();
     smooth(&white, SMOOTH_LINES)
+        .into_iter()
+        .map(|p| p.max(0.0))
+        .collect()
 }
 
 /// Moving average over `m` lines either side (fewer at the ends).

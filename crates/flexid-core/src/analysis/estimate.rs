@@ -376,12 +376,15 @@ pub(crate) fn mobility_equivalent(frf: &Frf) -> Frf {
 }
 
 /// The repeating quantisation error of a periodic record on a grid of step `q`, per line
-/// of a period ([`frf::quantisation_spectrum`]): the part of the error two periods share
-/// beyond what their scatter holds ([`frf::quantisation_correlation`]: the slow wander
-/// between periods and the noise behind the counts from the steady periods), placed by
-/// the speed of their mean at the excited lines (without those, e.g. lines to be inferred,
-/// spread evenly). Where the periods are too short to tell the wander from the noise, the
-/// whole scatter is taken as noise ([`frf::quantisation::noise_std_from_scatter`]).
+/// of a period ([`frf::quantisation_spectrum`]), placed by the speed of the periods' mean
+/// at the excited lines (without those, e.g. lines to be inferred, spread evenly). Two
+/// readings of how much of the error the periods share, the larger taken line by line:
+/// the noise behind the counts new at every sample, taken from the whole period-to-period
+/// scatter ([`frf::quantisation::noise_std_from_scatter`]), and the slow wander between
+/// the periods with the noise from the fast rest ([`frf::quantisation_correlation`]). Each
+/// misses what the other holds (the first calls a wander of several counts noise, the
+/// second reads a wander that changes within its window as noise), and a variance too
+/// small is what makes noise look like a gap.
 fn repeating_per_line(
     q: f64,
     signal: &[f64],
@@ -393,47 +396,39 @@ fn repeating_per_line(
     let periods = info.periods.min((signal.len() - start) / n);
     let steady = &signal[start..];
     let c = q * q / (2.0 * std::f64::consts::PI.powi(2));
-    // the gains of the sawtooth's harmonics and the power of those beyond MAX_HARMONIC
-    let (gains, tail) =
-        match frf::quantisation_correlation::PeriodOffsets::measure(steady, n, periods, q) {
-            Some(offsets) => {
-                let g = offsets.gains(offsets.noise_std());
-                let tail: f64 = g
-                    .iter()
-                    .enumerate()
-                    .skip(MAX_HARMONIC)
-                    .map(|(i, g)| c / ((i + 1) * (i + 1)) as f64 * g)
-                    .sum();
-                (g[..MAX_HARMONIC].to_vec(), tail.max(0.0))
-            }
-            None => {
-                let scatter = frf::quantisation::scatter_std(steady, n, periods).unwrap_or(0.0);
-                let sigma = frf::quantisation::noise_std_from_scatter(q, scatter);
-                let damp = 4.0 * std::f64::consts::PI.powi(2) * (sigma / q).powi(2);
-                let g: Vec<f64> = (1..=MAX_HARMONIC)
-                    .map(|k| (-damp * (k * k) as f64).exp())
-                    .collect();
-                let taken: f64 = g
-                    .iter()
-                    .enumerate()
-                    .map(|(i, g)| c / ((i + 1) * (i + 1)) as f64 * g)
-                    .sum();
-                let all = frf::quantisation::repeating_variance(q, sigma);
-                (g, (all - taken).max(0.0))
-            }
-        };
-    match frf::quantisation_spectrum::periodic_speed(steady, n, periods, &info.excited_lines) {
-        Some(speed) => Some(frf::quantisation_spectrum::shared_spectrum(
-            q, &gains, tail, &speed,
-        )),
-        None => {
-            let total: f64 = gains
-                .iter()
-                .enumerate()
-                .map(|(i, g)| c / ((i + 1) * (i + 1)) as f64 * g)
-                .sum::<f64>()
-                + tail;
-            Some(vec![total.max(0.0); n / 2 + 1])
+    let power = |g: &[f64]| -> f64 {
+        g.iter()
+            .enumerate()
+            .map(|(i, g)| c / ((i + 1) * (i + 1)) as f64 * g)
+            .sum()
+    };
+    let speed =
+        frf::quantisation_spectrum::periodic_speed(steady, n, periods, &info.excited_lines);
+    let per_line = |gains: &[f64], tail: f64| -> Vec<f64> {
+        match &speed {
+            Some(speed) => frf::quantisation_spectrum::shared_spectrum(q, gains, tail, speed),
+            None => vec![(power(gains) + tail).max(0.0); n / 2 + 1],
+        }
+    };
+    // noise new at every sample, from the whole scatter
+    let scatter = frf::quantisation::scatter_std(steady, n, periods).unwrap_or(0.0);
+    let sigma = frf::quantisation::noise_std_from_scatter(q, scatter);
+    let damp = 4.0 * std::f64::consts::PI.powi(2) * (sigma / q).powi(2);
+    let g: Vec<f64> = (1..=MAX_HARMONIC)
+        .map(|k| (-damp * (k * k) as f64).exp())
+        .collect();
+    let tail = (frf::quantisation::repeating_variance(q, sigma) - power(&g)).max(0.0);
+    let mut floor = per_line(&g, tail);
+    // the slow wander between periods
+    if let Some(offsets) =
+        frf::quantisation_correlation::PeriodOffsets::measure(steady, n, periods, q)
+    {
+        let g = offsets.gains(offsets.noise_std());
+        let tail = (power(&g) - power(&g[..MAX_HARMONIC])).max(0.0);
+        let shared = per_line(&g[..MAX_HARMONIC], tail);
+        for (f, s) in floor.iter_mut().zip(shared) {
+            *f = f.max(s);
         }
     }
+    Some(floor)
 }

@@ -402,8 +402,7 @@ fn repeating_per_line(
             .map(|(i, g)| c / ((i + 1) * (i + 1)) as f64 * g)
             .sum()
     };
-    let speed =
-        frf::quantisation_spectrum::periodic_speed(steady, n, periods, &info.excited_lines);
+    let speed = frf::quantisation_spectrum::periodic_speed(steady, n, periods, &info.excited_lines);
     let per_line = |gains: &[f64], tail: f64| -> Vec<f64> {
         match &speed {
             Some(speed) => frf::quantisation_spectrum::shared_spectrum(q, gains, tail, speed),

@@ -5,7 +5,7 @@
 //! `time_cap{max_seconds, capped, elapsed_s, not_tried}`, [`time_cap_json`]).
 
 use super::trajectory::{idim::LsFit, Kept, TrajectoryFit};
-use super::Diagnosis;
+use super::{rank, Diagnosis};
 use serde_json::{json, Value};
 
 fn num(x: f64) -> Value {
@@ -77,6 +77,7 @@ fn body_json(d: &Diagnosis) -> Value {
         },
         "ranking": d.ranking.iter().map(|r| json!({
             "effect": r.effect, "after_rms_db": num(r.after_rms_db), "score": num(r.score),
+            "converged": rank::nominal_chi2(&d.ranking).is_none_or(|n| r.converged(n)),
             "chi2": num(r.chi2), "added_params": r.added_params,
             "params": r.params.iter().map(|p| json!({"name": p.name, "value": num(p.value), "std": num(p.std)})).collect::<Vec<_>>(),
         })).collect::<Vec<_>>(),

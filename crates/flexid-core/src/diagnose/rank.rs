@@ -30,6 +30,24 @@ pub struct Ranked {
     pub params: Vec<Param>,
 }
 
+impl Ranked {
+    /// Whether the candidate's fit reached at least the nominal model's chi² (`nominal_chi2`,
+    /// the `none` entry's). Every candidate holds the nominal model (its effect at size
+    /// zero), so a fit that ends above it did not converge: its parameters are where the
+    /// search stopped, not an estimate, and are not to be read.
+    pub fn converged(&self, nominal_chi2: f64) -> bool {
+        self.chi2.is_finite() && self.chi2 <= nominal_chi2 * (1.0 + 1e-9)
+    }
+}
+
+/// The nominal model's chi² in a ranking (its `none` entry), if it is there.
+pub fn nominal_chi2(ranking: &[Ranked]) -> Option<f64> {
+    ranking
+        .iter()
+        .find(|r| r.effect == Effect::None)
+        .map(|r| r.chi2)
+}
+
 fn rms_db(data: &Data, e: &EffectFit) -> f64 {
     super::rms_parts(data, &e.model).0
 }
@@ -106,5 +124,38 @@ pub fn defining_parameter_significant(e: &EffectFit) -> bool {
             p.value.abs() >= super::effects::viscous::SIGNIFICANT_SIGMA * p.std
         }
         _ => true,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn ranked(effect: Effect, chi2: f64) -> Ranked {
+        Ranked {
+            effect,
+            after_rms_db: 0.0,
+            score: 0.0,
+            chi2,
+            added_params: 1,
+            params: Vec::new(),
+        }
+    }
+
+    /// A candidate that ended above the nominal model's chi² (or at a non-finite one) did
+    /// not converge; at or below it, it did.
+    #[test]
+    fn a_fit_above_the_nominal_did_not_converge() {
+        let ranking = vec![
+            ranked(Effect::Backlash, 90.0),
+            ranked(Effect::None, 100.0),
+            ranked(Effect::CoulombFriction, 4.2e8),
+            ranked(Effect::TimeDelay, f64::NAN),
+        ];
+        let n = nominal_chi2(&ranking).unwrap();
+        assert_eq!(n, 100.0);
+        let ok: Vec<bool> = ranking.iter().map(|r| r.converged(n)).collect();
+        assert_eq!(ok, [true, true, false, false]);
+        assert!(nominal_chi2(&ranking[..1]).is_none());
     }
 }

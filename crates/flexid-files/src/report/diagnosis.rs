@@ -186,7 +186,16 @@ pub fn render(d: &Diagnosis) -> String {
         s,
         "\nRanking (score = chi2 reduction - added params x ln(lines)):"
     );
+    let nominal_chi2 = flexid_core::diagnose::rank::nominal_chi2(&d.ranking);
     for k in &d.ranking {
+        if nominal_chi2.is_some_and(|n| !k.converged(n)) {
+            let _ = writeln!(
+                s,
+                "  {:20} fit did not converge (ended above the nominal model's chi2): not judged",
+                k.effect
+            );
+            continue;
+        }
         let ps: Vec<String> = k
             .params
             .iter()

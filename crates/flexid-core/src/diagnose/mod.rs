@@ -891,6 +891,23 @@ fn diagnose_from(
         }
         None => Vec::new(),
     };
+    // a set whose model ends farther from the measurement than the nominal model, in the
+    // gap the report shows (all lines, inverse-variance weighted), explains nothing there,
+    // whatever its chi² on the lines it was fitted to: not named
+    let mut effects = effects;
+    if let Some(last) = effects.last() {
+        let with = gap_of(data, &nominal, Some(&last.fit));
+        if with.after_rms_db > with.before_rms_db {
+            let names: Vec<&str> = effects.iter().map(|s| s.effect.name()).collect();
+            notes.push(format!(
+                "{} lowers the chi2 but widens the gap ({:.3} -> {:.3} dB over all lines): not named",
+                names.join(" + "),
+                with.before_rms_db,
+                with.after_rms_db
+            ));
+            effects.clear();
+        }
+    }
     let verdict = match effects.first() {
         Some(s) => s.effect,
         None if residual.gap_is_real() => Effect::Unexplained,

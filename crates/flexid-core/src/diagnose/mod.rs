@@ -966,7 +966,7 @@ fn amplitude_mode_of(
         }
         None => {
             notes.push(format!(
-                "amplitude-dependent mode: no modes could be fitted in {:.2}-{:.2} Hz at the lowest level (not identifiable)",
+                "amplitude-dependent mode: the modes of {:.2}-{:.2} Hz could not be fitted at the lowest level, or at no other (not identifiable)",
                 change[0], change[1]
             ));
             None

@@ -14,6 +14,10 @@
 //! One of them is called significant when `|z|` passes the two-sided
 //! [`SIGNIFICANT_SIGMA`] level shared by the `2 m` tests (Bonferroni): the family's
 //! false-alarm rate stays at `2 Φ(-3)` = 0.27 %, checked by a Monte-Carlo in the tests.
+//! The uncertainties' scale is estimated from the fits' residuals, so the quantile is
+//! Student's t with the smaller fit's `2L - P` degrees of freedom ([`t_crit`]: 3.58
+//! instead of 3.51 for the F-16's 6 comparisons on 172, 3.49 instead of 3.21 for a
+//! world swept sine's 2 on about 40).
 //!
 //! **Which mode.** Among the modes inside the band of the change whose frequency or damping
 //! passes, the one whose change alone (its `(f, ζ)` moved from the lowest level's to the
@@ -115,6 +119,10 @@ pub struct AmplitudeMode {
     /// Comparisons made (2 per mode) and the `|z|` one must pass.
     pub tests: usize,
     pub z_crit: f64,
+    /// Degrees of freedom of the comparisons' uncertainties: the smaller of the two
+    /// compared fits' `2L - P` (their covariance scale is estimated from as many
+    /// residuals, so `z` follows Student's t with about as many, [`t_crit`]).
+    pub dof: usize,
     /// The change named (`None`: nothing significant, or no mode in the change's band).
     pub named: Option<Named>,
 }
@@ -140,6 +148,70 @@ pub fn upper_quantile(p: f64) -> f64 {
 pub fn z_crit(tests: usize) -> f64 {
     let alpha = super::effects::backlash::erfc(SIGNIFICANT_SIGMA / std::f64::consts::SQRT_2);
     upper_quantile(alpha / (2.0 * tests.max(1) as f64))
+}
+
+/// `ln Γ(x)` for `x > 0` (Lanczos, g = 7, 9 terms; relative error below 1e-13).
+fn ln_gamma(x: f64) -> f64 {
+    const C: [f64; 9] = [
+        0.999_999_999_999_809_9,
+        676.520_368_121_885_1,
+        -1_259.139_216_722_402_8,
+        771.323_428_777_653_1,
+        -176.615_029_162_140_6,
+        12.507_343_278_686_905,
+        -0.138_571_095_265_720_12,
+        9.984_369_578_019_572e-6,
+        1.505_632_735_149_311_6e-7,
+    ];
+    if x < 0.5 {
+        let pi = std::f64::consts::PI;
+        return (pi / (pi * x).sin()).ln() - ln_gamma(1.0 - x);
+    }
+    let x = x - 1.0;
+    let mut a = C[0];
+    let t = x + 7.5;
+    for (i, c) in C.iter().enumerate().skip(1) {
+        a += c / (x + i as f64);
+    }
+    0.5 * (2.0 * std::f64::consts::PI).ln() + (x + 0.5) * t.ln() - t + a.ln()
+}
+
+/// `P(T > t)` for Student's t with `nu` degrees of freedom, `t >= 0` (Simpson's rule on
+/// the density over `[0, t]`, 4000 intervals).
+fn t_tail(t: f64, nu: f64) -> f64 {
+    let c = (ln_gamma(0.5 * (nu + 1.0)) - ln_gamma(0.5 * nu)).exp()
+        / (nu * std::f64::consts::PI).sqrt();
+    let pdf = |x: f64| c * (1.0 + x * x / nu).powf(-0.5 * (nu + 1.0));
+    let n = 4000;
+    let h = t / n as f64;
+    let mut s = pdf(0.0) + pdf(t);
+    for i in 1..n {
+        s += if i % 2 == 1 { 4.0 } else { 2.0 } * pdf(i as f64 * h);
+    }
+    (0.5 - s * h / 3.0).max(0.0)
+}
+
+/// The `|z|` each of `tests` two-sided comparisons must pass, as [`z_crit`], when each
+/// uncertainty's scale is estimated from `dof` residuals: Student's t quantile (the
+/// normal one beyond 10⁶ degrees of freedom).
+pub fn t_crit(tests: usize, dof: usize) -> f64 {
+    let alpha = super::effects::backlash::erfc(SIGNIFICANT_SIGMA / std::f64::consts::SQRT_2);
+    let p = alpha / (2.0 * tests.max(1) as f64);
+    if dof > 1_000_000 {
+        return upper_quantile(p);
+    }
+    let nu = dof.max(1) as f64;
+    // bisection on a log scale above the normal quantile (t's is larger)
+    let (mut a, mut b) = (upper_quantile(p) * 0.999, 1e4_f64);
+    for _ in 0..80 {
+        let m = (a * b).sqrt();
+        if t_tail(m, nu) > p {
+            a = m;
+        } else {
+            b = m;
+        }
+    }
+    (a * b).sqrt()
 }
 
 /// Whether a fitted mode is identified: its damping ratio and frequency determined within
@@ -243,7 +315,13 @@ pub fn analyse(levels: &[(usize, f64, Lines)], change_hz: [f64; 2]) -> Option<Am
         })
         .collect();
     let tests = 2 * n;
-    let zc = z_crit(tests);
+    let dof = [low, high]
+        .iter()
+        .filter_map(|&i| level_fits[i].fit.as_ref())
+        .map(|f| (2 * f.lines).saturating_sub(f.params))
+        .min()
+        .unwrap_or(1);
+    let zc = t_crit(tests, dof);
     // among the modes inside the band where the FRF changes whose frequency or damping
     // changes significantly, the one whose change alone changes the FRF most
     let inside =
@@ -273,6 +351,7 @@ pub fn analyse(levels: &[(usize, f64, Lines)], change_hz: [f64; 2]) -> Option<Am
         modes,
         tests,
         z_crit: zc,
+        dof,
         named,
     })
 }
@@ -372,6 +451,28 @@ mod tests {
         // one test: the two-sided 3-sigma level itself
         assert!((z_crit(1) - 3.0).abs() < 1e-4);
         assert!(z_crit(6) > 3.0 && z_crit(6) < 4.0);
+        // Student's t quantiles (tables): t_0.9995(10) = 4.587, t_0.999(10) = 4.144,
+        // t_0.975(5) = 2.571, t_0.9995(40) = 3.551; with 10^7 dof the normal's
+        let q = |p_one: f64, nu: f64| {
+            let (mut a, mut b) = (0.0, 100.0);
+            for _ in 0..100 {
+                let m = 0.5 * (a + b);
+                if t_tail(m, nu) > p_one {
+                    a = m;
+                } else {
+                    b = m;
+                }
+            }
+            0.5 * (a + b)
+        };
+        assert!((q(5e-4, 10.0) - 4.587).abs() < 2e-3);
+        assert!((q(1e-3, 10.0) - 4.144).abs() < 2e-3);
+        assert!((q(0.025, 5.0) - 2.571).abs() < 2e-3);
+        assert!((q(5e-4, 40.0) - 3.551).abs() < 2e-3);
+        assert!((t_crit(1, 10_000_000) - 3.0).abs() < 1e-4);
+        // t_crit: with 40 dof and one test, the two-sided 3-sigma level (p = 1.35e-3 a side)
+        assert!(t_crit(1, 40) > 3.0 && t_crit(1, 40) < q(1e-3, 40.0) + 0.2);
+        assert!(t_crit(6, 170) > z_crit(6) && t_crit(6, 170) < z_crit(6) + 0.15);
     }
 
     /// A mode at the damping bound, one whose damping cannot be told from zero and one

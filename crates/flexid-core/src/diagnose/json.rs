@@ -223,6 +223,7 @@ pub fn amplitude_mode_json(a: &super::amplitude_mode::AmplitudeMode) -> Value {
         "compared_levels": [a.levels[a.low].level, a.levels[a.high].level],
         "tests": a.tests,
         "z_crit": num(a.z_crit),
+        "dof": a.dof,
         "named": named,
         "levels": a.levels.iter().map(|l| json!({
             "level": l.level,

@@ -6,7 +6,8 @@ use serde::{Deserialize, Serialize};
 use std::fmt;
 
 /// An unmodelled effect the diagnosis can name, `None` (the gap is within the noise, or no
-/// effect is needed), or `Unexplained` (the gap is real but no candidate explains it).
+/// effect is needed), `Unexplained` (the gap is real but no candidate explains it) or
+/// `AmplitudeDependentMode` (no candidate explains it, but a mode moves with the level).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Effect {

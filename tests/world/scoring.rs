@@ -222,12 +222,13 @@ fn median_max(v: &[f64]) -> Option<(f64, f64)> {
     Some((*s.get(s.len() / 2)?, *s.last()?))
 }
 
-/// The verdict columns: the library's effects, `unexplained`, `error`.
+/// The verdict columns: the library's effects, `amplitude_dependent_mode` (`amplit`),
+/// `unexplained`, `error`.
 fn columns() -> Vec<&'static str> {
     EFFECTS
         .iter()
         .copied()
-        .chain(["unexplained", "error"])
+        .chain(["amplitude_dependent_mode", "unexplained", "error"])
         .collect()
 }
 

@@ -6,7 +6,8 @@ use serde::{Deserialize, Serialize};
 use std::fmt;
 
 /// An unmodelled effect the diagnosis can name, `None` (the gap is within the noise, or no
-/// effect is needed), or `Unexplained` (the gap is real but no candidate explains it).
+/// effect is needed), `Unexplained` (the gap is real but no candidate explains it) or
+/// `AmplitudeDependentMode` (no candidate explains it, but a mode moves with the level).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Effect {
@@ -29,6 +30,11 @@ pub enum Effect {
     /// Not a candidate: the verdict when the gap is significant but no candidate explains
     /// it significantly (the localised bands say where to look).
     Unexplained,
+    /// Not a candidate of the ranking: the verdict when no candidate explains a real gap but
+    /// the FRF changes between levels and a mode in that band changes its natural frequency
+    /// (a softening or hardening stiffness) or its damping ratio significantly with the
+    /// amplitude ([`super::amplitude_mode`]; which, in `Diagnosis::amplitude_mode`).
+    AmplitudeDependentMode,
 }
 
 impl Effect {
@@ -56,14 +62,16 @@ impl Effect {
             Effect::UnmodelledMode => "unmodelled_mode",
             Effect::Gravity => "gravity",
             Effect::Unexplained => "unexplained",
+            Effect::AmplitudeDependentMode => "amplitude_dependent_mode",
         }
     }
 
-    /// The effect of a wire name, if it is one (the candidates and `unexplained`).
+    /// The effect of a wire name, if it is one (the candidates, `unexplained` and
+    /// `amplitude_dependent_mode`).
     pub fn from_name(name: &str) -> Option<Effect> {
         Effect::ALL
             .into_iter()
-            .chain([Effect::Unexplained])
+            .chain([Effect::Unexplained, Effect::AmplitudeDependentMode])
             .find(|e| e.name() == name)
     }
 }
@@ -104,7 +112,10 @@ mod tests {
 
     #[test]
     fn wire_names_round_trip_through_serde_and_from_name() {
-        for e in Effect::ALL {
+        for e in Effect::ALL
+            .into_iter()
+            .chain([Effect::Unexplained, Effect::AmplitudeDependentMode])
+        {
             let json = serde_json::to_string(&e).unwrap();
             assert_eq!(json, format!("\"{}\"", e.name()));
             assert_eq!(serde_json::from_str::<Effect>(&json).unwrap(), e);

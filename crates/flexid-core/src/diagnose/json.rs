@@ -103,6 +103,7 @@ fn body_json(d: &Diagnosis) -> Value {
         },
         "nominal": lin_json(&d.nominal.lin),
         "trajectory": d.trajectory.as_ref().map(trajectory_json),
+        "amplitude_mode": d.amplitude_mode.as_ref().map(amplitude_mode_json),
         "torque_path": d.data.torque.as_ref().map(torque_path_json),
         "notes": d.notes,
         "seconds": num(d.seconds),
@@ -199,6 +200,52 @@ fn torque_path_json(t: &super::torque_path::TorquePath) -> Value {
         "noise_threshold_reduced_chi2": num(t.noise.threshold),
         "clean": fit(&t.clean),
         "with_loop": fit(&t.with_loop),
+    })
+}
+
+/// The modes of the band where the FRF changes between levels, per level, and the
+/// change named ([`super::amplitude_mode`]); `null` standard deviations or shifts where a
+/// figure is not identifiable.
+pub fn amplitude_mode_json(a: &super::amplitude_mode::AmplitudeMode) -> Value {
+    let named = a.named.map(|nm| {
+        let t = &a.modes[nm.mode];
+        json!({
+            "change": nm.change.name(),
+            "mode": nm.mode,
+            "frequency_hz": t.at[a.low].map(|m| num(m.f_hz)),
+            "frequency_shift_sigmas": t.f_shift_sigmas.map(num),
+            "damping_shift_sigmas": t.zeta_shift_sigmas.map(num),
+        })
+    });
+    json!({
+        "change_band_hz": [num(a.change_hz[0]), num(a.change_hz[1])],
+        "fit_band_hz": [num(a.band_hz[0]), num(a.band_hz[1])],
+        "compared_levels": [a.levels[a.low].level, a.levels[a.high].level],
+        "tests": a.tests,
+        "z_crit": num(a.z_crit),
+        "dof": a.dof,
+        "named": named,
+        "levels": a.levels.iter().map(|l| json!({
+            "level": l.level,
+            "torque_rms_nm": num(l.torque_rms),
+            "lines": l.fit.as_ref().map(|f| f.lines),
+            "reduced_chi2": l.fit.as_ref().map(|f| num(f.reduced_chi2())),
+            "covariance_scale": l.fit.as_ref().map(|f| num(f.scale)),
+        })).collect::<Vec<_>>(),
+        "modes": a.modes.iter().map(|t| json!({
+            "frequency_shift_sigmas": t.f_shift_sigmas.map(num),
+            "damping_shift_sigmas": t.zeta_shift_sigmas.map(num),
+            "change_z2": t.change_z2.map(num),
+            "change_rms_db": t.change_db.map(num),
+            "levels": a.levels.iter().zip(t.at.iter().zip(&t.identified)).map(|(l, (m, ok))| json!({
+                "level": l.level,
+                "identified": ok,
+                "frequency_hz": m.map(|m| num(m.f_hz)),
+                "frequency_std_hz": m.map(|m| num(m.f_std_hz)),
+                "damping_ratio": m.map(|m| num(m.zeta)),
+                "damping_ratio_std": m.map(|m| num(m.zeta_std)),
+            })).collect::<Vec<_>>(),
+        })).collect::<Vec<_>>(),
     })
 }
 

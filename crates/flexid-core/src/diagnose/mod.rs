@@ -8,6 +8,7 @@
 //! [`trajectory`] instead: the rigid body with friction by inverse dynamics.
 
 pub mod acceleration;
+pub mod amplitude_mode;
 pub mod damper_free;
 pub mod distortion;
 mod effect;
@@ -16,6 +17,7 @@ pub mod ground_spring;
 pub mod json;
 pub mod localise;
 pub mod lti;
+pub mod modal;
 pub mod nlsim;
 pub mod noise;
 pub mod rank;
@@ -478,6 +480,11 @@ pub struct Diagnosis {
     /// Whether the time cap ([`DiagnoseOptions::budget`]) stopped the diagnosis, and what
     /// it left out.
     pub time_cap: TimeCap,
+    /// The modes of the band where the FRF changes between levels, fitted at each level
+    /// and compared ([`amplitude_mode`]): made when no candidate explains a real gap and
+    /// the FRF changes significantly between levels (`None` otherwise). The verdict is
+    /// `amplitude_dependent_mode` when it names a change.
+    pub amplitude_mode: Option<amplitude_mode::AmplitudeMode>,
 }
 
 /// The time cap of a diagnosis: whether it was reached and which steps were not tried
@@ -730,6 +737,7 @@ struct Pass {
     gap: Gap,
     residual: ResidualKind,
     notes: Vec<String>,
+    amplitude_mode: Option<amplitude_mode::AmplitudeMode>,
 }
 
 impl Pass {
@@ -755,6 +763,7 @@ impl Pass {
             stage_cpu_s,
             trajectory: None,
             time_cap: TimeCap::default(),
+            amplitude_mode: self.amplitude_mode,
         }
     }
 }
@@ -908,11 +917,18 @@ fn diagnose_from(
             effects.clear();
         }
     }
-    let verdict = match effects.first() {
+    let mut verdict = match effects.first() {
         Some(s) => s.effect,
         None if residual.gap_is_real() => Effect::Unexplained,
         None => Effect::None,
     };
+    // unexplained, and the FRF changes between levels: does a mode of that band move?
+    let amplitude_mode = (verdict == Effect::Unexplained && residual.changed)
+        .then(|| amplitude_mode_of(data, &residual, &mut notes))
+        .flatten();
+    if amplitude_mode.as_ref().is_some_and(|a| a.named.is_some()) {
+        verdict = Effect::AmplitudeDependentMode;
+    }
     let winner = effects.first().map(|s| s.fit.clone());
     let gap = gap_of(data, &nominal, effects.last().map(|s| &s.fit));
     stage.lap("rank");
@@ -925,7 +941,37 @@ fn diagnose_from(
         gap,
         residual,
         notes,
+        amplitude_mode,
     })
+}
+
+/// The local modal analysis of the band where the FRF changes most between levels
+/// ([`amplitude_mode`]), its result in `notes`.
+fn amplitude_mode_of(
+    data: &Data,
+    residual: &ResidualKind,
+    notes: &mut Vec<String>,
+) -> Option<amplitude_mode::AmplitudeMode> {
+    let Some(w) = residual.change_local.filter(|w| w.window.significant) else {
+        notes.push(
+            "amplitude-dependent mode: not analysed (the FRF's change between levels is not localised to a significant run of lines)".into(),
+        );
+        return None;
+    };
+    let change = [w.window.lo_hz, w.window.hi_hz];
+    match amplitude_mode::of_data(data, change) {
+        Some(a) => {
+            notes.push(format!("amplitude-dependent mode: {}", a.words()));
+            Some(a)
+        }
+        None => {
+            notes.push(format!(
+                "amplitude-dependent mode: the modes of {:.2}-{:.2} Hz could not be fitted at the lowest level, or at no other (not identifiable)",
+                change[0], change[1]
+            ));
+            None
+        }
+    }
 }
 
 /// The candidates for the next step of the forward selection on `data` (the measurement,

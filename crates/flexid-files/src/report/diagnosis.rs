@@ -30,6 +30,9 @@ pub fn render(d: &Diagnosis) -> String {
             );
         }
     }
+    if let Some(a) = &d.amplitude_mode {
+        amplitude_mode(&mut s, a);
+    }
     if d.verdict == flexid_core::diagnose::Effect::Unexplained {
         let _ = writeln!(
             s,
@@ -222,4 +225,68 @@ pub fn render(d: &Diagnosis) -> String {
     }
     let _ = writeln!(s, "({:.2} s)", d.seconds);
     s
+}
+
+/// The modes of the band where the FRF changes between levels, per level, and what
+/// changes ([`flexid_core::diagnose::amplitude_mode`]).
+fn amplitude_mode(s: &mut String, a: &flexid_core::diagnose::amplitude_mode::AmplitudeMode) {
+    let _ = writeln!(
+        s,
+        "  modes of {:.2} - {:.2} Hz (the FRF changes between levels in {:.2} - {:.2} Hz), fitted at each level; levels {} and {} compared, |z| > {:.2} significant ({} comparisons):",
+        a.band_hz[0],
+        a.band_hz[1],
+        a.change_hz[0],
+        a.change_hz[1],
+        a.levels[a.low].level,
+        a.levels[a.high].level,
+        a.z_crit,
+        a.tests
+    );
+    match a.named {
+        Some(nm) => {
+            let _ = writeln!(s, "  => {} of mode {}", nm.change.name(), nm.mode + 1);
+        }
+        None => {
+            let _ = writeln!(s, "  => no mode changes significantly");
+        }
+    }
+    let sig =
+        |z: Option<f64>| z.map_or("not identifiable".to_string(), |z| format!("{z:+.1} sigma"));
+    for (i, t) in a.modes.iter().enumerate() {
+        let _ = writeln!(
+            s,
+            "  mode {}: frequency shift {}, damping shift {}; the FRF change it makes alone: {}",
+            i + 1,
+            sig(t.f_shift_sigmas),
+            sig(t.zeta_shift_sigmas),
+            match (t.change_z2, t.change_db) {
+                (Some(c), Some(db)) => format!("z2 {c:.4e}, RMS {db:.3} dB"),
+                _ => "not identifiable".to_string(),
+            }
+        );
+        for (l, (m, ok)) in a.levels.iter().zip(t.at.iter().zip(&t.identified)) {
+            match m {
+                Some(m) => {
+                    let _ = writeln!(
+                        s,
+                        "    level {} ({:.4} RMS): {:.4} +- {:.4} Hz, damping ratio {:.4} +- {:.4}{}",
+                        l.level,
+                        l.torque_rms,
+                        m.f_hz,
+                        m.f_std_hz,
+                        m.zeta,
+                        m.zeta_std,
+                        if *ok {
+                            ""
+                        } else {
+                            " (not identified: at a bound or not determined within it at 3 sigma)"
+                        }
+                    );
+                }
+                None => {
+                    let _ = writeln!(s, "    level {}: not identifiable", l.level);
+                }
+            }
+        }
+    }
 }

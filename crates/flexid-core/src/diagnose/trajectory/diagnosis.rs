@@ -283,5 +283,6 @@ pub fn diagnose(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Diagnosis,
         stage_cpu_s: Vec::new(),
         trajectory: Some(t),
         time_cap: crate::diagnose::TimeCap::of(&opts.budget, Vec::new()),
+        amplitude_mode: None,
     })
 }

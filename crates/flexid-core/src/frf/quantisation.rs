@@ -122,12 +122,18 @@ pub fn noise_std_from_scatter(q: f64, scatter: f64) -> f64 {
     if !(q > 0.0 && scatter > 0.0 && scatter.is_finite()) {
         return scatter.max(0.0);
     }
-    let target = scatter * scatter;
     let recorded = |sigma: f64| sigma * sigma + q * q / 12.0 - repeating_variance(q, sigma);
-    let (mut lo, mut hi) = (0.0, scatter);
+    root_of_increasing(recorded, scatter * scatter, scatter)
+}
+
+/// The root in `[0, hi]` of `f(σ) = target` for `f` increasing in `σ`, by 60 bisections
+/// (the recorded scatter as a function of the noise behind the counts, here and in
+/// [`super::quantisation_correlation`]).
+pub(crate) fn root_of_increasing(f: impl Fn(f64) -> f64, target: f64, hi: f64) -> f64 {
+    let (mut lo, mut hi) = (0.0, hi);
     for _ in 0..60 {
         let mid = 0.5 * (lo + hi);
-        if recorded(mid) < target {
+        if f(mid) < target {
             lo = mid;
         } else {
             hi = mid;

@@ -202,16 +202,7 @@ impl PeriodOffsets {
         if !(target > 0.0) || recorded(0.0) >= target {
             return 0.0;
         }
-        let (mut lo, mut hi) = (0.0, self.fast_scatter);
-        for _ in 0..60 {
-            let mid = 0.5 * (lo + hi);
-            if recorded(mid) < target {
-                lo = mid;
-            } else {
-                hi = mid;
-            }
-        }
-        0.5 * (lo + hi)
+        super::quantisation::root_of_increasing(recorded, target, self.fast_scatter)
     }
 }
 

@@ -39,6 +39,29 @@ fn args(extra: &[&str]) -> SweepArgs {
 
 fn quiet(_: &Progress) {}
 
+/// The recording identifies `chain` as 3 masses, every inertia and stiffness within 3 %.
+fn assert_identifies_within_3_percent(rec: &crate::recording::Recording, chain: &Chain) {
+    let an = analyze(
+        rec,
+        &AnalysisOptions {
+            masses: Some(3),
+            ..AnalysisOptions::default()
+        },
+    )
+    .unwrap();
+    let m = an.model.expect("a model");
+    for (got, want) in m.inertia_kgm2.iter().zip(&chain.inertia_kgm2).chain(
+        m.stiffness_nm_per_rad
+            .iter()
+            .zip(&chain.stiffness_nm_per_rad),
+    ) {
+        assert!(
+            ((got - want) / want).abs() < 0.03,
+            "identified {got}, true {want}"
+        );
+    }
+}
+
 #[test]
 fn sweep_over_simulated_drive_identifies_three_mass_chain() {
     let chain = e2e_chain();
@@ -61,25 +84,7 @@ fn sweep_over_simulated_drive_identifies_three_mass_chain() {
     assert_eq!(end.cycle, 18000);
     // row k = (torque_k, position before torque k): the first row is at rest
     assert_eq!(out.recording.position_rad.as_ref().unwrap()[0], 0.0);
-    let an = analyze(
-        &out.recording,
-        &AnalysisOptions {
-            masses: Some(3),
-            ..AnalysisOptions::default()
-        },
-    )
-    .unwrap();
-    let m = an.model.expect("a model");
-    for (got, want) in m.inertia_kgm2.iter().zip(&chain.inertia_kgm2).chain(
-        m.stiffness_nm_per_rad
-            .iter()
-            .zip(&chain.stiffness_nm_per_rad),
-    ) {
-        assert!(
-            ((got - want) / want).abs() < 0.03,
-            "identified {got}, true {want}"
-        );
-    }
+    assert_identifies_within_3_percent(&out.recording, &chain);
 }
 
 #[test]
@@ -542,23 +547,5 @@ fn lost_feedback_rows_are_filled_and_the_chain_still_identified() {
             x0[k]
         );
     }
-    let an = analyze(
-        &out.recording,
-        &AnalysisOptions {
-            masses: Some(3),
-            ..AnalysisOptions::default()
-        },
-    )
-    .unwrap();
-    let m = an.model.expect("a model");
-    for (got, want) in m.inertia_kgm2.iter().zip(&chain.inertia_kgm2).chain(
-        m.stiffness_nm_per_rad
-            .iter()
-            .zip(&chain.stiffness_nm_per_rad),
-    ) {
-        assert!(
-            ((got - want) / want).abs() < 0.03,
-            "identified {got}, true {want}"
-        );
-    }
+    assert_identifies_within_3_percent(&out.recording, &chain);
 }

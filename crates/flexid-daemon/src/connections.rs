@@ -188,6 +188,24 @@ impl Table {
     }
 }
 
+/// Connections the kernel queues for `accept` (capped by `net.core.somaxconn`). Tokio and
+/// the standard library listen with 128: a burst of connects (the load test opens 100 at
+/// once while the accept loop evicts idle ones) overflowed it, the kernel dropped SYNs
+/// (`TcpExtListenOverflows`) and a fresh API request waited for the client's 1 s SYN
+/// retransmission. A queue as long as the default connection limit holds such a burst.
+pub const LISTEN_BACKLOG: u32 = MAX_CONNECTIONS as u32;
+
+/// Bind the API's listening socket at `addr` with [`LISTEN_BACKLOG`].
+pub fn bind(addr: SocketAddr) -> std::io::Result<TcpListener> {
+    let socket = match addr {
+        SocketAddr::V4(_) => tokio::net::TcpSocket::new_v4()?,
+        SocketAddr::V6(_) => tokio::net::TcpSocket::new_v6()?,
+    };
+    socket.set_reuseaddr(true)?;
+    socket.bind(addr)?;
+    socket.listen(LISTEN_BACKLOG)
+}
+
 /// Serve `app` on `listener` under `limits` until `stop` turns true; then stop accepting,
 /// let every connection finish its request in progress, and return when all are closed.
 pub async fn serve(
@@ -346,6 +364,42 @@ mod tests {
         assert_eq!(Limits::for_nofile(100).max_connections, 16);
         let l = Limits::for_nofile(300);
         assert!(l.max_per_client <= l.max_connections);
+    }
+
+    /// A burst of 300 connects to a listener that is not accepting: all are queued by the
+    /// kernel (with tokio's default backlog 128, about 129 complete and the rest wait for
+    /// a SYN retransmission, which made a fresh API request take 1 s in the load test).
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn a_burst_of_connects_is_queued_not_dropped() {
+        const BURST: usize = 300;
+        let somaxconn: usize = std::fs::read_to_string("/proc/sys/net/core/somaxconn")
+            .ok()
+            .and_then(|s| s.trim().parse().ok())
+            .unwrap_or(0);
+        if somaxconn < BURST {
+            eprintln!("skipped: net.core.somaxconn {somaxconn} < {BURST} caps every backlog");
+            return;
+        }
+        let listener = bind("127.0.0.1:0".parse().unwrap()).unwrap();
+        let addr = listener.local_addr().unwrap();
+        let mut tasks = Vec::new();
+        for _ in 0..BURST {
+            tasks.push(tokio::spawn(async move {
+                tokio::time::timeout(
+                    Duration::from_millis(700),
+                    tokio::net::TcpStream::connect(addr),
+                )
+                .await
+            }));
+        }
+        let mut connected = Vec::new();
+        for t in tasks {
+            if let Ok(Ok(s)) = t.await.unwrap() {
+                connected.push(s);
+            }
+        }
+        assert_eq!(connected.len(), BURST, "connects completed without accept");
+        drop(listener);
     }
 
     /// The client with the most connections loses its oldest idle one; a busy one is

@@ -110,12 +110,10 @@ pub async fn start(
         .as_ref()
         .map(|m| Mqtt::start(m, stop_rx.clone()));
     let listen = config.api.listen;
-    let listener = tokio::net::TcpListener::bind(listen)
-        .await
-        .map_err(|source| DaemonError::Bind {
-            addr: listen,
-            source,
-        })?;
+    let listener = connections::bind(listen).map_err(|source| DaemonError::Bind {
+        addr: listen,
+        source,
+    })?;
     let addr = listener.local_addr().map_err(|source| DaemonError::Bind {
         addr: listen,
         source,

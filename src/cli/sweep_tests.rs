@@ -451,56 +451,6 @@ fn the_lost_feedback_budget_stops_the_sweep_and_max_lost_moves_it() {
     assert_eq!(out.recording.len(), 18000);
 }
 
-/// A drive whose feedback is lost at the cycles in `lose`: those cycles report the
-/// previous cycle's values with `fresh: false` (as the CANopen master does), while the
-/// plant moves on.
-struct LosingDrive {
-    inner: SimulatedDrive,
-    lose: Vec<usize>,
-    k: usize,
-    last: Option<flexid_canopen::Feedback>,
-    lost: u64,
-}
-
-impl flexid_canopen::CyclicDrive for LosingDrive {
-    type Error = SimulatedFault;
-    fn cycle(
-        &mut self,
-        torque_nm: f64,
-        deadline: std::time::Instant,
-    ) -> Result<flexid_canopen::Feedback, SimulatedFault> {
-        let fb = self.inner.cycle(torque_nm, deadline)?;
-        let k = self.k;
-        self.k += 1;
-        let out = match (&self.last, self.lose.contains(&k)) {
-            (Some(prev), true) => {
-                self.lost += 1;
-                flexid_canopen::Feedback {
-                    position_rad: prev.position_rad,
-                    velocity_rad_s: prev.velocity_rad_s,
-                    torque_nm: prev.torque_nm,
-                    fresh: false,
-                    ..fb.clone()
-                }
-            }
-            _ => fb.clone(),
-        };
-        self.last = Some(fb);
-        Ok(out)
-    }
-    fn cycle_period(&self) -> std::time::Duration {
-        self.inner.cycle_period()
-    }
-    fn rated_torque_nm(&self) -> f64 {
-        self.inner.rated_torque_nm()
-    }
-    fn counters(&self) -> flexid_canopen::Counters {
-        let mut c = self.inner.counters();
-        c.lost += self.lost;
-        c
-    }
-}
-
 /// Lost feedback does not spoil the identification: the rows recorded from a lost
 /// feedback (the previous values) are filled from their neighbours, within linear
 /// interpolation's error bound, and the 3-mass chain is identified as without loss. (A single held row in a CAN demo turned a pair's phase rise from 180 to 37 deg and
@@ -516,15 +466,12 @@ fn lost_feedback_rows_are_filled_and_the_chain_still_identified() {
             .with_encoder(1048576.0);
         run_sweep(&mut d, &p, &AtomicBool::new(false), &mut quiet)
     };
-    let mut drive = LosingDrive {
-        inner: SimulatedDrive::new(&chain, 1000.0)
+    let mut drive = LosingDrive::new(
+        SimulatedDrive::new(&chain, 1000.0)
             .unwrap()
             .with_encoder(1048576.0),
-        lose: lose.clone(),
-        k: 0,
-        last: None,
-        lost: 0,
-    };
+        lose.clone(),
+    );
     let out = run_sweep(&mut drive, &p, &AtomicBool::new(false), &mut quiet);
     assert!(out.complete(), "{:?}", out.reason);
     let (x, x0) = (
@@ -548,4 +495,62 @@ fn lost_feedback_rows_are_filled_and_the_chain_still_identified() {
         );
     }
     assert_identifies_within_3_percent(&out.recording, &chain);
+}
+
+/// Rows shared between the sweep loop's sink and its progress hook (as the daemon's
+/// pre-allocated rows are shared with its relay).
+#[derive(Clone, Default)]
+struct SharedRows(std::rc::Rc<std::cell::RefCell<Vec<Row>>>);
+
+impl RowSink for SharedRows {
+    fn push(&mut self, k: usize, row: &Row) {
+        let mut rows = self.0.borrow_mut();
+        match rows.get_mut(k) {
+            Some(old) => *old = *row,
+            None => rows.push(*row),
+        }
+    }
+}
+
+/// Whatever a progress report publishes is final: a row recorded from a lost feedback is
+/// filled before the report that covers it, also when it is the last row of a period
+/// (the report waits one cycle for the fresh row after it). The daemon streams the rows
+/// of each report to its files and the live Bode, never to be rewritten.
+#[test]
+fn progress_reports_publish_only_filled_rows() {
+    let chain = e2e_chain();
+    let p = plan(&args(&[])).unwrap();
+    let period = p.excitation.period_samples;
+    assert!(period > 0);
+    let lose = vec![period - 1, 2 * period - 2, 2 * period - 1, 3 * period + 7];
+    let mut drive = LosingDrive::new(SimulatedDrive::new(&chain, 1000.0).unwrap(), lose.clone());
+    let sink = SharedRows::default();
+    let seen = sink.0.clone();
+    let mut snapshots: Vec<Vec<Row>> = Vec::new();
+    let mut progress = |pr: &Progress| {
+        snapshots.push(seen.borrow()[..pr.cycle as usize].to_vec());
+    };
+    let end = run_sweep_into(
+        &mut drive,
+        &p,
+        &AtomicBool::new(false),
+        &mut progress,
+        &mut sink.clone(),
+    );
+    assert!(end.reason == StopReason::Complete, "{:?}", end.reason);
+    assert_eq!(end.held_rows, lose.len() as u64);
+    let rows = sink.0.borrow();
+    assert!(snapshots.len() >= 4);
+    for (i, snap) in snapshots.iter().enumerate() {
+        for (k, r) in snap.iter().enumerate() {
+            assert_eq!(r, &rows[k], "report {i}: row {k} published before its fill");
+        }
+    }
+    for &k in &lose {
+        assert_ne!(
+            rows[k].position_rad,
+            rows[k - 1].position_rad,
+            "row {k} held"
+        );
+    }
 }

@@ -246,3 +246,96 @@ impl DriveJob {
         });
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::Limits;
+    use crate::request::{parse_request, plan};
+    use flexid_sweep::{LosingDrive, SimulatedPlant};
+
+    /// The embedded plant's drive at `fs`, the same noise every time.
+    fn drive(fs: f64) -> flexid_sweep::SimulatedDrive {
+        let p = flexid_files::plant::load_plant_file(None).unwrap();
+        SimulatedPlant::of_file(&p).drive(fs, 7).unwrap()
+    }
+
+    /// A lockstep sweep of `periods` multisine periods on `drive`: the period events' rows
+    /// (what the daemon streams to the files and the live Bode) and the final recording.
+    fn sweep<D: CyclicDrive>(
+        d: D,
+        fs: f64,
+    ) -> (Vec<super::super::backend::SampleBlock>, Recording) {
+        let axis = AxisConfig {
+            name: "j1".into(),
+            bus: "sim".into(),
+            node: 1,
+            profile: None,
+            cycle_hz: fs,
+            clock: ClockKind::Simulated,
+            limits: Limits {
+                peak_torque_nm: 2.0,
+                max_speed_rad_s: 500.0,
+                position_window_rad: 100.0,
+                max_sweep_s: 60.0,
+                max_lost_tpdos: None,
+            },
+        };
+        let req = parse_request(
+            br#"{"excitation":"multisine","band_hz":[2,300],"amplitude_nm":1,"periods":3,"duration_s":2}"#,
+            &axis,
+        )
+        .unwrap();
+        let (mut job, mut handle) = DriveJob::plan(&axis, plan(&req, &axis, "t").unwrap()).unwrap();
+        job.run_on(d, "test".into(), |_| {});
+        let mut periods = Vec::new();
+        while let Ok(ev) = handle.events.try_recv() {
+            match ev {
+                SweepEvent::Period { samples, .. } => periods.push(samples),
+                SweepEvent::Ended { recording, .. } => return (periods, recording.unwrap()),
+            }
+        }
+        panic!("no end event");
+    }
+
+    /// Rows recorded from a lost feedback are filled before the daemon streams them: the
+    /// periods sent live hold the same rows as the final recording, and a lost row is the
+    /// linear interpolation of its fresh neighbours (which equal a run without loss),
+    /// also when the lost row is the last of a period (published before the fresh row
+    /// after it came).
+    #[test]
+    fn lost_feedback_is_filled_before_the_periods_are_streamed() {
+        let fs = 1000.0;
+        let (clean_periods, clean) = sweep(drive(fs), fs);
+        let period = clean_periods[0].position_rad.len();
+        let lose = vec![period - 1, 2 * period + 10, 2 * period + 11, 3 * period - 1];
+        let (periods, rec) = sweep(LosingDrive::new(drive(fs), lose.clone()), fs);
+        assert_eq!(periods.len(), clean_periods.len());
+        let x = rec.position_rad.as_ref().unwrap();
+        let x0 = clean.position_rad.as_ref().unwrap();
+        let streamed: Vec<f64> = periods
+            .iter()
+            .flat_map(|p| p.position_rad.clone())
+            .collect();
+        assert_eq!(
+            &streamed[..],
+            &x[..streamed.len()],
+            "streamed rows = recording"
+        );
+        for k in 0..x.len() {
+            if lose.contains(&k) {
+                let a = (0..k).rev().find(|j| !lose.contains(j)).unwrap();
+                let b = (k + 1..x.len()).find(|j| !lose.contains(j)).unwrap();
+                let w = (k - a) as f64 / (b - a) as f64;
+                let lerp = x0[a] + w * (x0[b] - x0[a]);
+                assert!(
+                    (x[k] - lerp).abs() <= 1e-12 * lerp.abs().max(1.0),
+                    "row {k}"
+                );
+                assert_ne!(x[k], x0[k - 1], "row {k} still holds the previous value");
+            } else {
+                assert_eq!(x[k], x0[k], "row {k}");
+            }
+        }
+    }
+}

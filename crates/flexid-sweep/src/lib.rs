@@ -14,10 +14,13 @@
 //! budget, a speed above the limit, a bus error, the duration limit or an interrupt end
 //! the loop with the rows measured so far and an [`RecordingEnd`] that says why.
 
+mod losing;
 mod plan;
 mod run;
 mod simulated;
+pub mod stale_fill;
 
+pub use losing::LosingDrive;
 pub use plan::{admission_check, default_heartbeats, Pacing, SweepPlan};
 pub use run::{
     realtime_setup, run_sweep, run_sweep_into, run_sweep_on_cycle_thread, Progress, RecordedRows,

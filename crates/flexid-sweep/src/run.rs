@@ -2,6 +2,7 @@
 
 use super::plan::{Pacing, SweepPlan};
 use super::simulated::SimulatedFault;
+use super::stale_fill::StaleFill;
 use flexid_canopen::{Counters, CyclicDrive, MasterError};
 use flexid_core::excitation::ExcitationKind;
 use flexid_core::recording::{CycleCounters, Recording, RecordingEnd, Sidecar};
@@ -245,7 +246,6 @@ pub fn run_sweep<D: CyclicDrive>(
 ) -> SweepOutcome {
     let mut rows = RecordedRows::with_capacity(plan.torque_nm.len());
     let end = run_sweep_into(drive, plan, stop, progress, &mut rows);
-    rows.fill_stale(&end.stale_rows);
     SweepOutcome {
         recording: rows.into_recording(plan.cycle_hz, end.sidecar.clone()),
         reason: end.reason,
@@ -275,7 +275,8 @@ pub struct Row {
 /// no copy of its own. Implementations must not allocate per row (they size their storage
 /// for the plan up front): `push` runs in the real-time cycle.
 pub trait RowSink {
-    /// Row `k`.
+    /// Row `k`: a new row, or a row already pushed, rewritten (a row recorded from a lost
+    /// feedback, filled once the fresh row after it has come: [`crate::stale_fill`]).
     fn push(&mut self, k: usize, row: &Row);
 }
 
@@ -299,39 +300,6 @@ impl RecordedRows {
         }
     }
 
-    /// Fills the rows whose feedback was lost (`stale`, ascending) by linear interpolation
-    /// between the nearest rows on either side that were not lost (held from the one
-    /// side at the ends). A lost row holds the drive's previous values: one such position
-    /// among tens of thousands is a step of one cycle's motion, whose difference is a
-    /// broadband impulse in the velocity that turned a 380/590 Hz pair's phase rise from
-    /// 180 to 37 deg and made an identification of three bodies report two.
-    pub fn fill_stale(&mut self, stale: &[usize]) {
-        let n = self.position.len();
-        let is_stale = |k: usize| stale.binary_search(&k).is_ok();
-        for &k in stale {
-            if k >= n {
-                continue;
-            }
-            let before = (0..k).rev().find(|&j| !is_stale(j));
-            let after = (k + 1..n).find(|&j| !is_stale(j));
-            for col in [
-                &mut self.position,
-                &mut self.velocity,
-                &mut self.torque_actual,
-            ] {
-                col[k] = match (before, after) {
-                    (Some(a), Some(b)) => {
-                        let w = (k - a) as f64 / (b - a) as f64;
-                        col[a] + w * (col[b] - col[a])
-                    }
-                    (Some(a), None) => col[a],
-                    (None, Some(b)) => col[b],
-                    (None, None) => col[k],
-                };
-            }
-        }
-    }
-
     /// The recording of these rows at `fs` [Hz] with `sidecar`.
     pub fn into_recording(self, fs: f64, sidecar: Sidecar) -> Recording {
         Recording {
@@ -348,11 +316,20 @@ impl RecordedRows {
 }
 
 impl RowSink for RecordedRows {
-    fn push(&mut self, _k: usize, row: &Row) {
-        self.torque.push(row.torque_setpoint_nm);
-        self.position.push(row.position_rad);
-        self.velocity.push(row.velocity_rad_s);
-        self.torque_actual.push(row.torque_actual_nm);
+    /// Row `k` appended, or rewritten when already there (a filled held row).
+    fn push(&mut self, k: usize, row: &Row) {
+        let values = [
+            (&mut self.torque, row.torque_setpoint_nm),
+            (&mut self.position, row.position_rad),
+            (&mut self.velocity, row.velocity_rad_s),
+            (&mut self.torque_actual, row.torque_actual_nm),
+        ];
+        for (column, v) in values {
+            match column.get_mut(k) {
+                Some(old) => *old = v,
+                None => column.push(v),
+            }
+        }
     }
 }
 
@@ -378,9 +355,8 @@ pub struct SweepEnd {
     pub ramp_cycles: usize,
     /// Why the ramp did not finish, if it did not.
     pub ramp_error: Option<String>,
-    /// Rows whose feedback was lost (the drive's previous values were recorded), in
-    /// order; at most `plan.max_lost_tpdos + 1` (the sweep stops beyond its budget).
-    pub stale_rows: Vec<usize>,
+    /// Rows recorded from a lost feedback (filled from their fresh neighbours in the sink).
+    pub held_rows: u64,
 }
 
 /// [`run_sweep`] with the rows going into `sink` (the daemon's sink streams them per
@@ -409,9 +385,11 @@ pub fn run_sweep_into<D: CyclicDrive>(
         0
     };
     let base_lost = drive.counters().lost;
-    // the rows recorded from a lost feedback: room for the whole budget, up front
-    let mut stale_rows =
-        Vec::with_capacity((plan.max_lost_tpdos.saturating_add(1)).min(n as u64) as usize);
+    // the rows recorded from a lost feedback: room for a run of the whole budget, up front
+    let mut fill =
+        StaleFill::with_capacity((plan.max_lost_tpdos.saturating_add(1)).min(n as u64) as usize);
+    // a progress report (which publishes the rows so far) waits while a held row does
+    let mut report_due = false;
     let t0 = Instant::now();
     let mut reason = StopReason::Complete;
     let mut stop_cycle = n as u64;
@@ -444,7 +422,7 @@ pub fn run_sweep_into<D: CyclicDrive>(
                 break;
             }
         };
-        sink.push(
+        fill.push(
             k,
             &Row {
                 torque_setpoint_nm: fb.torque_setpoint_nm,
@@ -452,11 +430,10 @@ pub fn run_sweep_into<D: CyclicDrive>(
                 velocity_rad_s: fb.velocity_rad_s,
                 torque_actual_nm: fb.torque_nm,
             },
+            fb.fresh,
+            sink,
         );
         rows += 1;
-        if !fb.fresh && stale_rows.len() < stale_rows.capacity() {
-            stale_rows.push(k);
-        }
         last_torque = fb.torque_setpoint_nm;
         let lost = fb.counters.lost - base_lost;
         if lost > plan.max_lost_tpdos {
@@ -475,7 +452,9 @@ pub fn run_sweep_into<D: CyclicDrive>(
             stop_cycle = k as u64;
             break;
         }
-        if (k + 1) % report_every == 0 || k + 1 == n {
+        report_due |= (k + 1) % report_every == 0;
+        if (report_due && !fill.waiting()) || k + 1 == n {
+            report_due = false;
             progress(&Progress {
                 cycle: (k + 1) as u64,
                 total: n as u64,
@@ -558,6 +537,6 @@ pub fn run_sweep_into<D: CyclicDrive>(
         overruns,
         ramp_cycles,
         ramp_error,
-        stale_rows,
+        held_rows: fill.held(),
     }
 }

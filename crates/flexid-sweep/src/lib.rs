@@ -16,15 +16,17 @@
 
 mod losing;
 mod plan;
+mod rows;
 mod run;
 mod simulated;
 pub mod stale_fill;
 
 pub use losing::LosingDrive;
 pub use plan::{admission_check, default_heartbeats, Pacing, SweepPlan};
+pub use rows::{RecordedRows, Row, RowSink};
 pub use run::{
-    realtime_setup, run_sweep, run_sweep_into, run_sweep_on_cycle_thread, Progress, RecordedRows,
-    Row, RowSink, StopReason, SweepEnd, SweepOutcome,
+    realtime_setup, run_sweep, run_sweep_into, run_sweep_on_cycle_thread, Progress, StopReason,
+    SweepEnd, SweepOutcome,
 };
 pub use simulated::{SimulatedDrive, SimulatedFault, SimulatedPlant};
 

@@ -13,7 +13,7 @@
 //! publishes rows to the daemon's relay) while a held row waits for its fill. Nothing here
 //! allocates after [`StaleFill::with_capacity`]: it runs in the real-time cycle.
 
-use crate::run::{Row, RowSink};
+use crate::rows::{Row, RowSink};
 
 /// The fill of held rows: the last fresh row and the run of held rows after it.
 #[derive(Debug)]

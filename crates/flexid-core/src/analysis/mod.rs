@@ -10,10 +10,15 @@ mod pipeline;
 mod summary;
 mod time_cap;
 
+#[cfg(test)]
+mod tests_ground_damper;
+
 pub use estimate::{
     estimate_frf, estimate_torque_path, periodic_excitation, EstimatedFrf, ResponseEstimate,
 };
 pub use json::to_json;
-pub use pipeline::{analyze, analyze_estimate, Analysis, AnalysisError, AnalysisOptions};
+pub use pipeline::{
+    analyze, analyze_estimate, Analysis, AnalysisError, AnalysisOptions, GroundDamperOut,
+};
 pub use summary::{Coupling, ModelSummary};
 pub use time_cap::TimeCap;

@@ -7,6 +7,7 @@ use crate::identify::exact::{chain_from_spectra, with_coupling_damping};
 use crate::identify::fit::{
     fit_chain, select_confirmed_order, ChainFit, FitOptions, OrderCandidate,
 };
+use crate::identify::ground_damper::{self, GroundDamping};
 use crate::identify::inertia::{estimate_inertia, estimate_inertia_below_pairs, InertiaEstimate};
 use crate::identify::paper::{step_by_step, StepByStep};
 use crate::model::{Chain, ModelError, SampledChain};
@@ -113,6 +114,30 @@ pub struct Analysis {
     /// SNR `|H| / sigma_H` is below 1 carry no information); `None` when every line was
     /// used or a band was given.
     pub supported_band_hz: Option<[f64; 2]>,
+    /// The damper from the motor to the ground seen on the lowest lines, when significant,
+    /// and the measured FRF with it taken out ([`crate::identify::ground_damper`]): the
+    /// pairs, the total inertia and the free chain are identified on that FRF; the model's
+    /// FRF (`model_frf`) has the damper put back, on the footing of `measured`.
+    pub ground_damper: Option<GroundDamperOut>,
+}
+
+/// A ground damper taken out of the measurement before the chain was identified.
+#[derive(Debug, Clone)]
+pub struct GroundDamperOut {
+    /// The damper [N m s/rad] and its standard deviation.
+    pub damping: GroundDamping,
+    /// The measured FRF without it: what the free chain was fitted to.
+    pub free_frf: Frf,
+}
+
+impl Analysis {
+    /// The FRF the chain is identified on: the measured one, or the measured one with the
+    /// ground damper taken out.
+    pub fn fitted_frf(&self) -> &Frf {
+        self.ground_damper
+            .as_ref()
+            .map_or(&self.measured.frf, |g| &g.free_frf)
+    }
 }
 
 /// Analyse a recording: estimate its FRF and identify the compliant chain behind it.
@@ -214,7 +239,22 @@ fn measure_and_detect(
         measured.frf.kind,
         FrfKind::DifferencedVelocity | FrfKind::Position
     );
-    let work = if fittable {
+    let ground = ground_damper::take_out(&measured.frf, delay).map(|(free_frf, damping)| {
+        notes.push(format!(
+            "viscous friction from the motor to the ground: b = {:.4e} +- {:.1e} N m s/rad on the lowest lines (Re of 1/mobility, {:.1} sigma): taken out of the measurement (Y / (1 - b Y)) before the pairs, the total inertia and the chain were identified, and put back into the model's FRF",
+            damping.b_nms_per_rad,
+            damping.std_nms_per_rad,
+            damping.b_nms_per_rad / damping.std_nms_per_rad
+        ));
+        GroundDamperOut { damping, free_frf }
+    });
+    let work = if let Some(g) = &ground {
+        if fittable {
+            g.free_frf.clone()
+        } else {
+            mobility_equivalent(&g.free_frf)
+        }
+    } else if fittable {
         measured.frf.clone()
     } else {
         notes.push(match measured.frf.kind {
@@ -246,6 +286,7 @@ fn measure_and_detect(
         notes,
         time_cap: None,
         supported_band_hz: supported,
+        ground_damper: ground,
     };
     Ok((analysis, work, fittable))
 }
@@ -444,7 +485,7 @@ fn fit_given_order(
             let Some(init) = exact_chain(j, &sel) else {
                 continue;
             };
-            match fit_chain(&analysis.measured.frf, &init, fit_opts) {
+            match fit_chain(analysis.fitted_frf(), &init, fit_opts) {
                 Ok(f) if best.as_ref().is_none_or(|b| f.cost < b.cost) => best = Some(f),
                 Ok(_) => {}
                 Err(e) => last_err = Some(e),
@@ -476,8 +517,7 @@ fn fit_given_order(
             spectra.len()
         ));
         let top = analysis
-            .measured
-            .frf
+            .fitted_frf()
             .freq_hz
             .last()
             .copied()
@@ -494,7 +534,7 @@ fn fit_given_order(
         "no initial chain could be formed from the detected pairs".into(),
     ))?;
     opts.fit.budget.begin_fit(m, opts.fit.starts);
-    Ok(fit_chain(&analysis.measured.frf, &init, fit_opts)?)
+    Ok(fit_chain(analysis.fitted_frf(), &init, fit_opts)?)
 }
 
 /// No `--masses`: the orders with all pairs and with the one or two least prominent
@@ -525,7 +565,7 @@ fn fit_chosen_order(
         candidates.extend(exact_chain(j, &[]));
         offered.push(Vec::new());
     }
-    let sel = select_confirmed_order(&analysis.measured.frf, &candidates, fit_opts, |k, f| {
+    let sel = select_confirmed_order(analysis.fitted_frf(), &candidates, fit_opts, |k, f| {
         moved_feature(&offered[k], &f.chain)
     })?;
     analysis.orders = sel.candidates;
@@ -546,16 +586,27 @@ fn finish(
     delay: u32,
 ) -> Result<Analysis, AnalysisError> {
     let sc = SampledChain::new(&fit.chain, fs, delay)?;
+    let b = analysis
+        .ground_damper
+        .as_ref()
+        .map_or(0.0, |g| g.damping.b_nms_per_rad);
     let mut model_frf = analysis.measured.frf.clone();
     for (i, f) in model_frf.freq_hz.iter().enumerate() {
-        model_frf.h[i] = match model_frf.kind {
+        let free = match model_frf.kind {
             FrfKind::Position => sc.position_frf(*f),
             _ => sc.frf(*f),
+        };
+        model_frf.h[i] = if b > 0.0 {
+            ground_damper::with_ground_damper(free, *f, model_frf.kind, fs, b, delay)
+        } else {
+            free
         };
         model_frf.var[i] = 0.0;
     }
     model_frf.coherence = None;
-    analysis.model = Some(ModelSummary::new(&fit, &sc));
+    let mut summary = ModelSummary::new(&fit, &sc);
+    summary.ground_damping = analysis.ground_damper.as_ref().map(|g| g.damping);
+    analysis.model = Some(summary);
     analysis.model_frf = Some(model_frf);
     analysis.fit = Some(fit);
     Ok(analysis)

@@ -51,6 +51,9 @@ pub struct ModelSummary {
     pub total_inertia_kgm2: f64,
     /// Where the compliant couplings are, softest-mode first.
     pub couplings: Vec<Coupling>,
+    /// Viscous friction from the motor to the ground [N m s/rad] and its uncertainty, when
+    /// the lowest lines showed it significantly (`None`: the chain is free).
+    pub ground_damping: Option<crate::identify::ground_damper::GroundDamping>,
 }
 
 /// Whether a value with one-sigma uncertainty `std` is identifiable: both defined and the
@@ -89,7 +92,7 @@ impl Serialize for ModelSummary {
             .iter()
             .map(|z| z.is_finite().then_some(*z))
             .collect();
-        let mut m = ser.serialize_map(Some(15))?;
+        let mut m = ser.serialize_map(Some(17))?;
         m.serialize_entry("masses", &self.masses)?;
         m.serialize_entry("inertia_kgm2", &j)?;
         m.serialize_entry("inertia_std_kgm2", &j_sd)?;
@@ -104,6 +107,12 @@ impl Serialize for ModelSummary {
         m.serialize_entry("damping_ratio", &zeta)?;
         m.serialize_entry("total_inertia_kgm2", &self.total_inertia_kgm2)?;
         m.serialize_entry("couplings", &self.couplings)?;
+        // 0 when none was seen: the chain is free (the model's parameter is zero)
+        let b = self
+            .ground_damping
+            .map(|g| (g.b_nms_per_rad, g.std_nms_per_rad));
+        m.serialize_entry("motor_viscous_nms_per_rad", &b.map_or(0.0, |b| b.0))?;
+        m.serialize_entry("motor_viscous_std_nms_per_rad", &b.map(|b| b.1))?;
         m.serialize_entry(
             "identifiable",
             &serde_json::json!({
@@ -156,6 +165,7 @@ impl ModelSummary {
             resonance_std_hz,
             damping_ratio,
             total_inertia_kgm2: ch.total_inertia(),
+            ground_damping: None,
             couplings,
         }
     }
@@ -296,6 +306,7 @@ mod tests {
             antiresonance_std_hz: vec![0.3],
             damping_ratio: vec![f64::NAN],
             total_inertia_kgm2: 3e-3,
+            ground_damping: None,
             couplings: Vec::new(),
         };
         let v = serde_json::to_value(&m).unwrap();

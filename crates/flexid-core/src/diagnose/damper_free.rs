@@ -1,118 +1,16 @@
 //! Starts of the nominal chain with viscous friction to the ground, identified on the
 //! measurement with that damper taken out.
 //!
-//! The identification fits a *free* chain. A motor with a strong damper to the ground
-//! (`b` comparable to `J_total w` on the lowest lines) does not look free there, and the
-//! free chain bends to mimic it: a soft extra pair below the band, a huge body on a tiny
-//! spring. Fitting the damper afterwards from that chain stays in its basin. The damper
-//! can be taken out of the measurement exactly instead: at the motor, the driving-point
-//! mobility (velocity per torque) of a chain with a damper `b` to the ground is
-//!
-//! ```text
-//! Y(jw) = 1 / (Z_free(jw) + b),     so     Y_free = Y / (1 - b Y)
-//! ```
-//!
-//! with `Z_free` the free chain's driving-point impedance. `Z_free` is passive and, below
-//! the first anti-resonance, `j w J_total` plus a real part of order `w^2` (the couplings'
-//! dampers): `Re(1/Y)` on the lowest lines estimates `b` (biased up when an anti-resonance
-//! is near them; the joint fit that follows corrects it). The identification then runs on
-//! `Y_free`. (Passivity also bounds `b` by `Re(1/Y)` on every line, but not usefully: over
-//! hundreds of lines some fall a few sigma low, and where `|h|` is near its noise the
-//! linearised variance of `1/h` does not hold; tried on the world benchmark, the bound
-//! turned a damping of 0.549 seen to 1e-4 into -1.9.)
+//! The chain fitted without the damper can bend into a basin (a soft extra pair mimicking
+//! the ground damping) that a joint fit of chain and damper, started from it, does not
+//! leave. The identification takes the damper out of the measurement first
+//! ([`crate::identify::ground_damper`]), so the chain it returns is a start in the right
+//! basin, with the damper it saw.
 
 use super::lti::LinExt;
 use super::Data;
 use crate::analysis::{analyze_estimate, estimate_frf, EstimatedFrf};
-use crate::frf::{Frf, FrfKind};
-use num_complex::Complex64;
-use std::f64::consts::PI;
-
-/// The damper from the motor to the ground seen on the lowest lines.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct GroundDamping {
-    /// Viscous damping [N m s/rad].
-    pub b_nms_per_rad: f64,
-    /// Its standard deviation from the lines' variances [N m s/rad].
-    pub std_nms_per_rad: f64,
-}
-
-/// Significance (in standard deviations) the damping must have before the measurement is
-/// corrected for it (the project's one significance level, [`super::noise::SIGNIFICANT_SIGMA`]).
-const SIGMA: f64 = super::noise::SIGNIFICANT_SIGMA;
-
-/// The factor `g(w)` with `Y = g h`: the continuous mobility from a line of `frf`. The
-/// sampling's own lag is removed: half a sample for the zero-order hold, and half a sample
-/// more for a backward-differenced velocity, plus the whole-sample I/O delay `io_delay`.
-fn mobility_factor(frf: &Frf, f_hz: f64, io_delay: u32) -> Option<Complex64> {
-    let w = 2.0 * PI * f_hz;
-    let t = 1.0 / frf.sample_rate_hz;
-    let lag_samples = io_delay as f64
-        + match frf.kind {
-            FrfKind::DifferencedVelocity => 1.0,
-            FrfKind::Position | FrfKind::Velocity => 0.5,
-            FrfKind::Other => return None,
-        };
-    let undo_lag = Complex64::from_polar(1.0, w * t * lag_samples);
-    Some(match frf.kind {
-        FrfKind::Position => Complex64::new(0.0, w) * undo_lag,
-        _ => undo_lag,
-    })
-}
-
-/// The ground damping from `Re(1/Y)` on the lowest octave of lines (at least two; an
-/// inverse-variance weighted mean).
-/// `None` when the response is not a motion or there are fewer than two usable lines.
-pub fn ground_damping(frf: &Frf, io_delay: u32) -> Option<GroundDamping> {
-    let lines: Vec<(f64, f64, f64)> = (0..frf.len())
-        .filter_map(|i| {
-            let (h, v) = (frf.h[i], frf.var[i]);
-            if !(v.is_finite() && v > 0.0 && h.norm() > 0.0) {
-                return None;
-            }
-            let g = mobility_factor(frf, frf.freq_hz[i], io_delay)?;
-            let z = 1.0 / (g * h);
-            // var(1/(g h)) = var(h) / (|g|^2 |h|^4); half of it in the real part
-            let var_re = 0.5 * v / (g.norm_sqr() * h.norm_sqr().powi(2));
-            Some((frf.freq_hz[i], z.re, var_re))
-        })
-        .collect();
-    if lines.len() < 2 {
-        return None;
-    }
-    let f0 = lines[0].0;
-    let low: Vec<&(f64, f64, f64)> = lines
-        .iter()
-        .enumerate()
-        .take_while(|(k, l)| *k < 2 || l.0 <= 2.0 * f0)
-        .map(|(_, l)| l)
-        .collect();
-    let (sw, swz) = low
-        .iter()
-        .fold((0.0, 0.0), |(a, b), l| (a + 1.0 / l.2, b + l.1 / l.2));
-    let b = swz / sw;
-    let std = (1.0 / sw).sqrt();
-    (b.is_finite() && std.is_finite()).then_some(GroundDamping {
-        b_nms_per_rad: b,
-        std_nms_per_rad: std,
-    })
-}
-
-/// `frf` with a damper `b` [N m s/rad] from the motor to the ground taken out:
-/// `h / (1 - b g h)` per line, variances propagated (`|1 - b g h|^-4`).
-pub fn without_ground_damper(frf: &Frf, b: f64, io_delay: u32) -> Frf {
-    let mut out = frf.clone();
-    for i in 0..out.len() {
-        let Some(g) = mobility_factor(frf, frf.freq_hz[i], io_delay) else {
-            continue;
-        };
-        let d = 1.0 - b * g * frf.h[i];
-        out.h[i] = frf.h[i] / d;
-        out.var[i] = frf.var[i] / d.norm_sqr().powi(2);
-    }
-    out.coherence = None;
-    out
-}
+pub use crate::identify::ground_damper::{ground_damping, without_ground_damper, GroundDamping};
 
 /// Start of the nominal `n`-body chain with viscous friction to the ground: the chain
 /// identified on the highest level's measurement with its ground damper taken out, and
@@ -128,7 +26,7 @@ pub fn start(
     let level = &data.levels[top];
     let est: EstimatedFrf = estimate_frf(&level.rec, band).ok()?;
     let damping = ground_damping(&est.frf, level.io_delay)?;
-    if damping.b_nms_per_rad < SIGMA * damping.std_nms_per_rad {
+    if damping.b_nms_per_rad < crate::identify::SIGNIFICANT_SIGMA * damping.std_nms_per_rad {
         return None;
     }
     let corrected = EstimatedFrf {
@@ -150,6 +48,7 @@ pub fn start(
 mod tests {
     use super::*;
     use crate::diagnose::lti::Discrete;
+    use crate::frf::{Frf, FrfKind};
     use crate::model::Chain;
 
     /// A 3-body chain with a strong damper to the ground, its sampled differenced-velocity
@@ -219,6 +118,9 @@ mod tests {
             sample_rate_hz: fs,
         };
         let d = ground_damping(&measured, 0).unwrap();
-        assert!(d.b_nms_per_rad.abs() < SIGMA * d.std_nms_per_rad, "{d:?}");
+        assert!(
+            d.b_nms_per_rad.abs() < crate::identify::SIGNIFICANT_SIGMA * d.std_nms_per_rad,
+            "{d:?}"
+        );
     }
 }

@@ -23,10 +23,7 @@
 //! hundreds of lines), the correlation of neighbouring Welch lines (Hann window, half
 //! overlap: it widens the spread, not the mean).
 
-/// Significance of a parameter that must differ from zero, or of a gap that must exceed
-/// the noise [standard deviations]: the one-sided probability that noise alone reaches it
-/// is 0.13 %.
-pub const SIGNIFICANT_SIGMA: f64 = 3.0;
+pub use crate::identify::SIGNIFICANT_SIGMA;
 
 /// The noise floor of the reduced chi² for a set of levels.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -284,6 +284,14 @@ fn model_section(s: &mut String, a: &Analysis) {
                 if i == 0 { "  (motor side)" } else { "" }
             );
         }
+        if let Some(g) = &model.ground_damping {
+            let _ = writeln!(
+                s,
+                "  b motor-ground   {:>14.4e} {:>16}  viscous friction [N m s/rad], from the lowest lines",
+                g.b_nms_per_rad,
+                pct(g.std_nms_per_rad, g.b_nms_per_rad)
+            );
+        }
         if model.masses > 1 {
             let _ = writeln!(
                 s,

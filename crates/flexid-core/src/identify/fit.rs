@@ -699,14 +699,8 @@ fn summarize(
     })
 }
 
-/// Inverse of a symmetric positive semi-definite matrix: Cholesky, or the pseudo-inverse
-/// (singular values below 1e-12 of the largest dropped) when it is singular.
+/// Inverse of the information matrix `JᵀJ`: [`crate::lsq::covariance_of_information`]
+/// (an undetermined direction gets a huge variance, never zero).
 pub(super) fn invert_spd(a: &DMatrix<f64>) -> DMatrix<f64> {
-    if let Some(ch) = a.clone().cholesky() {
-        return ch.inverse();
-    }
-    let svd = a.clone().svd(true, true);
-    let smax = svd.singular_values.max();
-    svd.pseudo_inverse(1e-12 * smax)
-        .unwrap_or_else(|_| DMatrix::from_element(a.nrows(), a.ncols(), f64::INFINITY))
+    crate::lsq::covariance_of_information(a)
 }

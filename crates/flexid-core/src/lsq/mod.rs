@@ -8,9 +8,11 @@
 //! a time-domain simulation whose cost is not smooth in the gap (contact switches move
 //! from sample to sample), where a finite-difference Jacobian is noise.
 
+pub mod information;
 pub mod lm;
 pub mod residuals;
 
+pub use information::covariance_of_information;
 pub use lm::{
     minimize, minimize_until, Damping, LmOptions, LmOutcome, LmWorkspace, NormalEquations,
 };

@@ -123,10 +123,9 @@ pub fn minimise(
     let jtj = DMatrix::from_row_slice(np, np, &ws.jtj);
     let dof = (n as f64 - np as f64).max(1.0);
     let scale = (out.cost / dof).max(1.0);
-    let cov = jtj
-        .pseudo_inverse(1e-12)
-        .map(|c| (c * scale).as_slice().to_vec())
-        .unwrap_or_else(|_| vec![f64::NAN; np * np]);
+    let cov = (super::covariance_of_information(&jtj) * scale)
+        .as_slice()
+        .to_vec();
     Some(LmResult {
         x: ws.theta.clone(),
         cost: out.cost,

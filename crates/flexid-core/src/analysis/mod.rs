@@ -11,7 +11,8 @@ mod summary;
 mod time_cap;
 
 pub use estimate::{
-    estimate_frf, estimate_torque_path, periodic_excitation, EstimatedFrf, ResponseEstimate,
+    estimate_frf, estimate_motion, estimate_torque_path, periodic_excitation, EstimatedFrf,
+    ResponseEstimate,
 };
 pub use json::to_json;
 pub use pipeline::{analyze, analyze_estimate, Analysis, AnalysisError, AnalysisOptions};

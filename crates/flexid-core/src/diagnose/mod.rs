@@ -25,6 +25,7 @@ mod renominal;
 pub mod scan;
 pub mod search;
 pub mod select;
+pub mod shortened;
 pub mod simplex;
 #[cfg(test)]
 mod tests_support;
@@ -150,6 +151,9 @@ pub struct Level {
     /// from the spread over the realisations (noise and stochastic nonlinear distortion),
     /// on the same lines. `None` otherwise.
     pub spread_var: Option<Vec<f64>>,
+    /// `rec` cut for the search's short simulations of a stepped sine, once per number of
+    /// steady periods.
+    pub shortened: shortened::ShortenedCuts,
 }
 
 /// The measurements as the effect fits see them.
@@ -336,6 +340,7 @@ pub fn prepare(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Data, Diagn
             io_delay: r.sidecar.io_delay_samples.unwrap_or(0),
             averages: e.averages,
             spread_var,
+            shortened: Default::default(),
         });
     }
     let targets = levels.iter().map(|l| target(l, opts.fit_lines)).collect();

@@ -17,7 +17,7 @@ use super::error::{check_fs, FrfError};
 use super::types::{Frf, FrfKind};
 use crate::excitation::ExcitationInfo;
 use num_complex::Complex64;
-use realfft::{RealFftPlanner, RealToComplex};
+use realfft::RealToComplex;
 use std::sync::Arc;
 
 /// Default relative threshold for inferring excited lines from the input spectrum.
@@ -170,7 +170,7 @@ impl PeriodicEstimator {
                 return Err(FrfError::LineOutOfRange { line, max });
             }
         }
-        let fft = RealFftPlanner::<f64>::new().plan_fft_forward(period_samples);
+        let fft = super::plan_cache::forward(period_samples);
         let spec_u = fft.make_output_vec();
         let spec_y = fft.make_output_vec();
         let scratch = fft.make_scratch_vec();

@@ -284,12 +284,30 @@ fn cubic_correction(nl: Nl, x: &[f64], n: usize, k: usize, c: f64) -> Option<f64
     }
 }
 
+/// A state vector: on the stack for a size known at compile time (`[f64; N]`, kept in
+/// registers), on the heap for any other.
+trait StateBuf: AsRef<[f64]> + AsMut<[f64]> {
+    fn zeros(ns: usize) -> Self;
+}
+
+impl StateBuf for Vec<f64> {
+    fn zeros(ns: usize) -> Self {
+        vec![0.0; ns]
+    }
+}
+
+impl<const N: usize> StateBuf for [f64; N] {
+    fn zeros(_: usize) -> Self {
+        [0.0; N]
+    }
+}
+
 /// One simulation of [`simulate_lanes`]: its state and what it has recorded.
-struct Lane<'a> {
+struct Lane<'a, B> {
     u: &'a [f64],
-    x: Vec<f64>,
-    xn: Vec<f64>,
-    xt: Vec<f64>,
+    x: B,
+    xn: B,
+    xt: B,
     pos: Vec<f64>,
     vel: Vec<f64>,
     dsum: Vec<f64>,
@@ -300,15 +318,16 @@ struct Lane<'a> {
     unstable: bool,
 }
 
-impl<'a> Lane<'a> {
+impl<'a, B: StateBuf> Lane<'a, B> {
     fn new(u: &'a [f64], start: &[f64], ns: usize, n: usize) -> Self {
-        let mut x = start.to_vec();
-        x.resize(ns, 0.0);
+        let mut x = B::zeros(ns);
+        let m = start.len().min(ns);
+        x.as_mut()[..m].copy_from_slice(&start[..m]);
         Lane {
             u,
             x,
-            xn: vec![0.0; ns],
-            xt: vec![0.0; ns],
+            xn: B::zeros(ns),
+            xt: B::zeros(ns),
             pos: Vec::with_capacity(u.len()),
             vel: Vec::with_capacity(u.len()),
             dsum: vec![0.0; n.saturating_sub(1)],
@@ -317,10 +336,22 @@ impl<'a> Lane<'a> {
         }
     }
 
+    /// Sample `i`: record the state at the sample instant, step it over the sample, check
+    /// it.
+    #[inline(always)]
+    fn sample<const N: usize>(&mut self, s: &Setup, nl: Nl, i: usize) {
+        self.record(s.n);
+        let uk = self.u[i];
+        for _ in 0..s.sub {
+            self.sub_step::<N>(s, nl, uk);
+        }
+        self.check();
+    }
+
     /// Record the state at the sample instant.
     #[inline(always)]
     fn record(&mut self, n: usize) {
-        let x = &self.x;
+        let x = self.x.as_ref();
         self.pos.push(x[0]);
         self.vel.push(x[n]);
         for (i, s) in self.dsum.iter_mut().enumerate() {
@@ -342,7 +373,6 @@ impl<'a> Lane<'a> {
             ..
         } = *s;
         let ns = bm.len();
-        let (x, xn, xt) = (&mut self.x, &mut self.xn, &mut self.xt);
         match (nl, modes) {
             (Nl::Backlash { g, .. }, Some([free, lin_m, free_m])) => {
                 let side = |x: &[f64]| {
@@ -353,45 +383,62 @@ impl<'a> Lane<'a> {
                         dx.signum()
                     }
                 };
-                let s0 = side(x);
+                let s0 = side(self.x.as_ref());
                 let p = if s0 == 0.0 { free } else { lin_p };
-                p.apply::<N>(x, xn, uk, -c * g * s0);
-                if side(xn) != s0 {
-                    xt.copy_from_slice(x);
+                p.apply::<N>(self.x.as_ref(), self.xn.as_mut(), uk, -c * g * s0);
+                if side(self.xn.as_ref()) != s0 {
+                    self.xt.as_mut().copy_from_slice(self.x.as_ref());
                     for _ in 0..MICRO {
-                        let sj = side(xt);
+                        let sj = side(self.xt.as_ref());
                         let p = if sj == 0.0 { free_m } else { lin_m };
-                        p.apply::<N>(xt, xn, uk, -c * g * sj);
-                        std::mem::swap(xt, xn);
+                        p.apply::<N>(self.xt.as_ref(), self.xn.as_mut(), uk, -c * g * sj);
+                        std::mem::swap(&mut self.xt, &mut self.xn);
                     }
-                    std::mem::swap(xt, xn);
+                    std::mem::swap(&mut self.xt, &mut self.xn);
                 }
             }
-            _ => match cubic_correction(nl, x, n, k, c) {
+            _ => match cubic_correction(nl, self.x.as_ref(), n, k, c) {
                 Some(fc) => {
-                    lin_p.apply::<N>(x, xn, uk, 1.5 * fc - 0.5 * self.fc_prev);
+                    let f = 1.5 * fc - 0.5 * self.fc_prev;
+                    lin_p.apply::<N>(self.x.as_ref(), self.xn.as_mut(), uk, f);
                     self.fc_prev = fc;
                 }
-                None => lin_p.apply::<N>(x, xn, uk, 0.0),
+                None => lin_p.apply::<N>(self.x.as_ref(), self.xn.as_mut(), uk, 0.0),
             },
         }
         if let Nl::Friction { tc } = nl {
             let b = bm[n];
             if b != 0.0 {
+                let xn = self.xn.as_mut();
                 let tf = (-xn[n] / b).clamp(-tc, tc);
                 for r in 0..ns {
                     xn[r] += bm[r] * tf;
                 }
             }
         }
-        std::mem::swap(x, xn);
+        std::mem::swap(&mut self.x, &mut self.xn);
     }
 
     /// Check the state after a sample's sub-steps.
     #[inline(always)]
     fn check(&mut self) {
-        if !self.x.iter().all(|v| v.is_finite() && v.abs() < 1e12) {
+        if !self
+            .x
+            .as_ref()
+            .iter()
+            .all(|v| v.is_finite() && v.abs() < 1e12)
+        {
             self.unstable = true;
+        }
+    }
+
+    /// Samples `from..` alone, until the end or the state leaves the bounds.
+    fn run<const N: usize>(&mut self, s: &Setup, nl: Nl, from: usize) {
+        for i in from..self.u.len() {
+            if self.unstable {
+                break;
+            }
+            self.sample::<N>(s, nl, i);
         }
     }
 
@@ -413,30 +460,55 @@ impl<'a> Lane<'a> {
     }
 }
 
-/// The time loop of [`simulate_lanes`], `N` states (`N = 0`: any number): every lane's
-/// sample in turn, sub-step by sub-step, each lane to its own length; a lane that leaves
+/// Two lanes stepped together, sub-step by sub-step, while both have samples and stay in
+/// bounds; then each alone to its end.
+fn run_pair<const N: usize, B: StateBuf>(a: &mut Lane<B>, b: &mut Lane<B>, s: &Setup, nl: Nl) {
+    let common = a.u.len().min(b.u.len());
+    let mut done = 0;
+    while done < common && !a.unstable && !b.unstable {
+        a.record(s.n);
+        b.record(s.n);
+        let (ua, ub) = (a.u[done], b.u[done]);
+        for _ in 0..s.sub {
+            a.sub_step::<N>(s, nl, ua);
+            b.sub_step::<N>(s, nl, ub);
+        }
+        a.check();
+        b.check();
+        done += 1;
+    }
+    a.run::<N>(s, nl, done);
+    b.run::<N>(s, nl, done);
+}
+
+/// The time loop of [`simulate_lanes`], `N` states (`N = 0`: any number, on the heap):
+/// the lanes two by two (see [`run_pair`]), each to its own length; a lane that leaves
 /// the bounds stops (its output is NaN).
 fn integrate<const N: usize>(s: &Setup, nl: Nl, us: &[&[f64]], starts: &[Vec<f64>]) -> Vec<SimOut> {
-    let (n, ns, sub) = (s.n, s.bm.len(), s.sub);
-    let mut lanes: Vec<Lane> = us
+    if N == 0 {
+        integrate_with::<N, Vec<f64>>(s, nl, us, starts)
+    } else {
+        integrate_with::<N, [f64; N]>(s, nl, us, starts)
+    }
+}
+
+fn integrate_with<const N: usize, B: StateBuf>(
+    s: &Setup,
+    nl: Nl,
+    us: &[&[f64]],
+    starts: &[Vec<f64>],
+) -> Vec<SimOut> {
+    let (n, ns) = (s.n, s.bm.len());
+    let mut lanes: Vec<Lane<B>> = us
         .iter()
         .zip(starts)
         .map(|(u, start)| Lane::new(u, start, ns, n))
         .collect();
-    let len = us.iter().map(|u| u.len()).max().unwrap_or(0);
-    for i in 0..len {
-        let live = |l: &Lane| i < l.u.len() && !l.unstable;
-        for l in lanes.iter_mut().filter(|l| live(l)) {
-            l.record(n);
-        }
-        for _ in 0..sub {
-            for l in lanes.iter_mut().filter(|l| live(l)) {
-                let uk = l.u[i];
-                l.sub_step::<N>(s, nl, uk);
-            }
-        }
-        for l in lanes.iter_mut().filter(|l| live(l)) {
-            l.check();
+    for pair in lanes.chunks_mut(2) {
+        match pair {
+            [a, b] => run_pair::<N, B>(a, b, s, nl),
+            [a] => a.run::<N>(s, nl, 0),
+            _ => {}
         }
     }
     lanes.into_iter().map(|l| l.finish(n)).collect()

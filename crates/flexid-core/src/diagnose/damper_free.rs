@@ -23,7 +23,7 @@
 
 use super::lti::LinExt;
 use super::Data;
-use crate::analysis::{analyze_estimate, estimate_frf, EstimatedFrf};
+use crate::analysis::{analyze_estimate, EstimatedFrf};
 use crate::frf::{Frf, FrfKind};
 use num_complex::Complex64;
 use std::f64::consts::PI;
@@ -126,7 +126,7 @@ pub fn start(
 ) -> Option<LinExt> {
     let top = super::top_level(data);
     let level = &data.levels[top];
-    let est: EstimatedFrf = estimate_frf(&level.rec, band).ok()?;
+    let est: EstimatedFrf = level.measured(band).ok()?;
     let damping = ground_damping(&est.frf, level.io_delay)?;
     if damping.b_nms_per_rad < SIGMA * damping.std_nms_per_rad {
         return None;

@@ -92,4 +92,45 @@ mod tests {
             shortened_stepped(&b, 1).unwrap().torque_cmd_nm
         );
     }
+
+    /// A level's kept estimate is `estimate_frf` of its recording to the bit for the band
+    /// it was made for; another band is estimated anew.
+    #[test]
+    fn a_levels_kept_estimate_is_the_estimate() {
+        use crate::analysis::estimate_frf;
+        use crate::diagnose::lti::LinExt;
+        use crate::diagnose::nlsim::{simulate, Nl};
+        use crate::diagnose::{prepare, DiagnoseOptions};
+        let mut rec = stepped(1.0);
+        let chain = crate::model::Chain::new(vec![1e-3, 2e-3], vec![400.0], vec![0.05]).unwrap();
+        let mut lin = LinExt::nominal(chain);
+        lin.motor_b = 0.05;
+        rec.position_rad = Some(simulate(&lin, Nl::None, &rec.torque_cmd_nm, 1000.0, 2).pos);
+        let data = prepare(
+            std::slice::from_ref(&rec),
+            &DiagnoseOptions {
+                masses: 2,
+                ..DiagnoseOptions::default()
+            },
+        )
+        .unwrap();
+        let bits = |e: &crate::analysis::EstimatedFrf| -> Vec<u64> {
+            e.frf
+                .h
+                .iter()
+                .flat_map(|h| [h.re.to_bits(), h.im.to_bits()])
+                .chain(e.frf.var.iter().map(|v| v.to_bits()))
+                .collect()
+        };
+        let level = &data.levels[0];
+        for band in [None, Some([10.0, 100.0])] {
+            let want = estimate_frf(&rec, band).unwrap();
+            assert_eq!(
+                bits(&level.measured(band).unwrap()),
+                bits(&want),
+                "{band:?}"
+            );
+        }
+        assert!(level.measured.as_ref().is_some_and(|(b, _)| b.is_none()));
+    }
 }

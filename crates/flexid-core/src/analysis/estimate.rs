@@ -74,8 +74,29 @@ pub fn estimate_frf(
     rec: &Recording,
     band_hz: Option<[f64; 2]>,
 ) -> Result<EstimatedFrf, AnalysisError> {
-    let fs = rec.sample_rate_hz;
     let (motion, signal) = rec.preferred_motion().ok_or(AnalysisError::NoMotion)?;
+    // an encoder's counts: their repeating error is part of each line's variance
+    let quantum = match motion {
+        MotionSignal::Position | MotionSignal::Velocity => frf::quantisation::grid_step(signal),
+        MotionSignal::Acceleration => None,
+    };
+    estimate_motion(rec, motion, signal, quantum, band_hz)
+}
+
+/// [`estimate_frf`] of the response `signal` [rad, rad/s or rad/s² by `motion`] to the
+/// recording's torque command (any motion columns of `rec` are not read), with the grid
+/// step `quantum` of `signal` [its unit] when it lies on an encoder's counts (`None`: no
+/// count error in the line variances; `h` does not depend on it). For a simulated response
+/// ([`crate::diagnose::nlsim::sim_frf`]): the measurement's estimator without copying its
+/// recording or searching a smooth signal for a grid.
+pub fn estimate_motion(
+    rec: &Recording,
+    motion: MotionSignal,
+    signal: &[f64],
+    quantum: Option<f64>,
+    band_hz: Option<[f64; 2]>,
+) -> Result<EstimatedFrf, AnalysisError> {
+    let fs = rec.sample_rate_hz;
     let (y, kind) = match motion {
         MotionSignal::Position => (
             frf::differenced_velocity(signal, fs),
@@ -83,11 +104,6 @@ pub fn estimate_frf(
         ),
         MotionSignal::Velocity => (signal.to_vec(), FrfKind::Velocity),
         MotionSignal::Acceleration => (signal.to_vec(), FrfKind::Other),
-    };
-    // an encoder's counts: their repeating error is part of each line's variance
-    let quantum = match motion {
-        MotionSignal::Position | MotionSignal::Velocity => frf::quantisation::grid_step(signal),
-        MotionSignal::Acceleration => None,
     };
     let response = Response {
         y: &y,

@@ -14,7 +14,8 @@ mod time_cap;
 mod tests_ground_damper;
 
 pub use estimate::{
-    estimate_frf, estimate_torque_path, periodic_excitation, EstimatedFrf, ResponseEstimate,
+    estimate_frf, estimate_motion, estimate_torque_path, periodic_excitation, EstimatedFrf,
+    ResponseEstimate,
 };
 pub use json::to_json;
 pub use pipeline::{

@@ -9,7 +9,7 @@
 
 use super::lti::LinExt;
 use super::Data;
-use crate::analysis::{analyze_estimate, estimate_frf, EstimatedFrf};
+use crate::analysis::{analyze_estimate, EstimatedFrf};
 pub use crate::identify::ground_damper::{ground_damping, without_ground_damper, GroundDamping};
 
 /// Start of the nominal `n`-body chain with viscous friction to the ground: the chain
@@ -24,7 +24,7 @@ pub fn start(
 ) -> Option<LinExt> {
     let top = super::top_level(data);
     let level = &data.levels[top];
-    let est: EstimatedFrf = estimate_frf(&level.rec, band).ok()?;
+    let est: EstimatedFrf = level.measured(band).ok()?;
     let damping = ground_damping(&est.frf, level.io_delay)?;
     if damping.b_nms_per_rad < crate::identify::SIGNIFICANT_SIGMA * damping.std_nms_per_rad {
         return None;

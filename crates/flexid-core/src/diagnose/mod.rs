@@ -25,13 +25,16 @@ mod renominal;
 pub mod scan;
 pub mod search;
 pub mod select;
+pub mod shortened;
 pub mod simplex;
 #[cfg(test)]
 mod tests_support;
 pub mod torque_path;
 pub mod trajectory;
 
-use crate::analysis::{analyze, estimate_frf, AnalysisOptions};
+use crate::analysis::{
+    analyze_estimate, estimate_frf, AnalysisError, AnalysisOptions, EstimatedFrf,
+};
 use crate::frf::{FrfKind, NonExcitedLevels};
 use crate::identify::fit::FitBudget;
 use crate::recording::Recording;
@@ -150,6 +153,24 @@ pub struct Level {
     /// from the spread over the realisations (noise and stochastic nonlinear distortion),
     /// on the same lines. `None` otherwise.
     pub spread_var: Option<Vec<f64>>,
+    /// `rec` cut for the search's short simulations of a stepped sine, once per number of
+    /// steady periods.
+    pub shortened: shortened::ShortenedCuts,
+    /// The FRF of `rec` as [`estimate_frf`] gave it to [`prepare`] (before the realisations'
+    /// variances were swapped), and the band it was asked for: the nominal starts identify
+    /// from it instead of estimating it again ([`Level::measured`]). `None`: estimate anew.
+    pub measured: Option<(Option<[f64; 2]>, std::sync::Arc<EstimatedFrf>)>,
+}
+
+impl Level {
+    /// `estimate_frf(&self.rec, band)`: the estimate [`prepare`] made when `band` is the
+    /// one it was made for (the same to the bit), else a new one.
+    pub fn measured(&self, band: Option<[f64; 2]>) -> Result<EstimatedFrf, AnalysisError> {
+        match &self.measured {
+            Some((b, e)) if *b == band => Ok(e.as_ref().clone()),
+            _ => estimate_frf(&self.rec, band),
+        }
+    }
 }
 
 /// The measurements as the effect fits see them.
@@ -282,6 +303,7 @@ pub fn prepare(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Data, Diagn
             return Err(DiagnoseError::Rates);
         }
         let mut e = estimate_frf(r, opts.band_hz).map_err(|e| DiagnoseError::Analysis(i, e))?;
+        let measured = Some((opts.band_hz, std::sync::Arc::new(e.clone())));
         kind = e.frf.kind;
         if kind == FrfKind::Other {
             return Err(DiagnoseError::Kind(i));
@@ -336,6 +358,8 @@ pub fn prepare(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Data, Diagn
             io_delay: r.sidecar.io_delay_samples.unwrap_or(0),
             averages: e.averages,
             spread_var,
+            shortened: Default::default(),
+            measured,
         });
     }
     let targets = levels.iter().map(|l| target(l, opts.fit_lines)).collect();
@@ -601,29 +625,38 @@ fn nominal_analysis(masses: usize, band: Option<[f64; 2]>, budget: &FitBudget) -
 }
 
 fn nominal_start(
-    rec: &Recording,
+    level: &Level,
     masses: usize,
     band: Option<[f64; 2]>,
     budget: &FitBudget,
 ) -> Option<crate::model::Chain> {
     let opts = nominal_analysis(masses, band, budget);
-    match analyze(rec, &opts) {
-        Ok(a) => a.fit.map(|f| f.chain),
-        Err(_) if masses == 1 => {
+    // `analyze(rec, opts)` from the level's estimate (the same band)
+    let rec = &level.rec;
+    let measured = level.measured(band).ok();
+    let analysed = measured
+        .clone()
+        .and_then(|m| analyze_estimate(rec, m, &opts).ok());
+    match analysed {
+        Some(a) => a.fit.map(|f| f.chain),
+        None if masses == 1 => {
             // a rigid body: its inertia from the low-frequency gain
-            let a = analyze(
-                rec,
-                &AnalysisOptions {
-                    masses: None,
-                    ..opts
-                },
-            )
-            .ok();
+            let a = measured.clone().and_then(|m| {
+                analyze_estimate(
+                    rec,
+                    m,
+                    &AnalysisOptions {
+                        masses: None,
+                        ..opts
+                    },
+                )
+                .ok()
+            });
             let j = a
                 .as_ref()
                 .and_then(|a| a.total_inertia.as_ref().map(|t| t.j_kgm2))
                 .or_else(|| {
-                    let e = estimate_frf(rec, band).ok()?;
+                    let e = measured?;
                     let k = e.frf.len().min(5).max(1);
                     let s: f64 = (0..k)
                         .map(|i| {
@@ -637,7 +670,7 @@ fn nominal_start(
                 })?;
             crate::model::Chain::new(vec![j], vec![], vec![]).ok()
         }
-        Err(_) => None,
+        None => None,
     }
 }
 
@@ -1098,7 +1131,7 @@ fn fit_nominal(
             budget.skip_order();
             break;
         }
-        let Some(start) = nominal_start(&data.levels[i].rec, n, band, budget) else {
+        let Some(start) = nominal_start(&data.levels[i], n, band, budget) else {
             continue;
         };
         starts.push(start.clone());
@@ -1123,7 +1156,7 @@ fn fit_nominal(
     let start = n
         .checked_sub(1)
         .filter(|&m| m > 0)
-        .and_then(|m| nominal_start(&data.levels[top].rec, m, band, budget))
+        .and_then(|m| nominal_start(&data.levels[top], m, band, budget))
         .and_then(|c| {
             effects::mode::starts(&c, &[0.5 * data.f_max()], &[])
                 .into_iter()
@@ -1149,7 +1182,7 @@ fn fit_grounded_nominal(
     starts: &mut Vec<crate::model::Chain>,
 ) -> Result<(LinExt, Option<LinExt>), DiagnoseError> {
     for l in &data.levels {
-        if let Some(c) = nominal_start(&l.rec, n, band, budget) {
+        if let Some(c) = nominal_start(l, n, band, budget) {
             starts.push(c);
         }
     }
@@ -1340,7 +1373,7 @@ fn fit_extra_mode(
     }
     let budget = &c.steps.budget.clone();
     let mut extra: Vec<crate::model::Chain> = Vec::new();
-    if let Some(ch) = nominal_start(&data.levels[top_level(data)].rec, n + 1, band, budget) {
+    if let Some(ch) = nominal_start(&data.levels[top_level(data)], n + 1, band, budget) {
         extra.push(ch);
     }
     // candidate frequencies of the extra mode: the most significant localised bands

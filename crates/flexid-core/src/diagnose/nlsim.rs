@@ -7,7 +7,7 @@
 //! the full nonlinear equations), which generates the benchmark's data.
 
 use super::lti::{zoh, LinExt};
-use crate::analysis::estimate_frf;
+use crate::analysis::estimate_motion;
 use crate::recording::{MotionSignal, Recording};
 use num_complex::Complex64;
 
@@ -112,7 +112,48 @@ pub struct SimOut {
     pub defl_rms: Vec<f64>,
 }
 
+/// The chain `lin` with the effect `nl` under the torque command `u` [N m] at `fs` [Hz],
+/// `substeps` sub-steps per sample, from rest (a free chain under a ground cubic: from its
+/// centred start).
 pub fn simulate(lin: &LinExt, nl: Nl, u: &[f64], fs: f64, substeps: usize) -> SimOut {
+    simulate_lanes(lin, nl, &[u], fs, substeps)
+        .pop()
+        .expect("one lane")
+}
+
+/// [`simulate`] of the same chain and effect under several excitations `us` (the levels of
+/// a measurement), one [`SimOut`] each, equal to the bit to [`simulate`] of each alone. The
+/// excitations are stepped together, sub-step by sub-step: one simulation's sub-step waits
+/// on its previous one (a chain of dependent multiplications and additions), so the
+/// processor works on the others' in that time.
+pub fn simulate_lanes(
+    lin: &LinExt,
+    nl: Nl,
+    us: &[&[f64]],
+    fs: f64,
+    substeps: usize,
+) -> Vec<SimOut> {
+    let s = setup(lin, nl, fs, substeps);
+    let starts: Vec<Vec<f64>> = us
+        .iter()
+        .map(|u| match nl {
+            Nl::GroundCubic { .. } if lin.motor_b == 0.0 && lin.ground_k == 0.0 => {
+                centred_start(&lin.chain, u, fs)
+            }
+            _ => vec![0.0; s.bm.len()],
+        })
+        .collect();
+    // fixed state sizes (the chain's 2n states, no current loop) unroll and vectorise
+    match s.bm.len() {
+        4 => integrate::<4>(&s, nl, us, &starts),
+        6 => integrate::<6>(&s, nl, us, &starts),
+        8 => integrate::<8>(&s, nl, us, &starts),
+        _ => integrate::<0>(&s, nl, us, &starts),
+    }
+}
+
+/// The propagators of [`simulate`] for `lin` and `nl` at `substeps` sub-steps per sample.
+fn setup(lin: &LinExt, nl: Nl, fs: f64, substeps: usize) -> Setup {
     let ch = &lin.chain;
     let n = ch.masses();
     let k = match nl {
@@ -166,13 +207,7 @@ pub fn simulate(lin: &LinExt, nl: Nl, u: &[f64], fs: f64, substeps: usize) -> Si
     } else {
         0.0
     };
-    let start = match nl {
-        Nl::GroundCubic { .. } if lin.motor_b == 0.0 && lin.ground_k == 0.0 => {
-            centred_start(ch, u, fs)
-        }
-        _ => vec![0.0; ns],
-    };
-    let s = Setup {
+    Setup {
         n,
         k,
         c,
@@ -180,14 +215,6 @@ pub fn simulate(lin: &LinExt, nl: Nl, u: &[f64], fs: f64, substeps: usize) -> Si
         lin_p,
         modes,
         bm,
-        start,
-    };
-    // fixed state sizes (the chain's 2n states, no current loop) unroll and vectorise
-    match ns {
-        4 => integrate::<4>(&s, nl, u),
-        6 => integrate::<6>(&s, nl, u),
-        8 => integrate::<8>(&s, nl, u),
-        _ => integrate::<0>(&s, nl, u),
     }
 }
 
@@ -202,8 +229,6 @@ struct Setup {
     modes: Option<[Prop; 3]>,
     /// Input column of a motor torque over a sub-step.
     bm: Vec<f64>,
-    /// The initial state.
-    start: Vec<f64>,
 }
 
 /// The initial state of a free chain (no damper or spring to the ground) that moves as in
@@ -259,96 +284,234 @@ fn cubic_correction(nl: Nl, x: &[f64], n: usize, k: usize, c: f64) -> Option<f64
     }
 }
 
-/// The time loop of [`simulate`], `N` states (`N = 0`: any number).
-fn integrate<const N: usize>(s: &Setup, nl: Nl, u: &[f64]) -> SimOut {
-    let Setup {
-        n,
-        k,
-        c,
-        sub,
-        ref lin_p,
-        ref modes,
-        ref bm,
-        ref start,
-    } = *s;
-    let ns = bm.len();
-    let mut x: Vec<f64> = start.clone();
-    x.resize(ns, 0.0);
-    let mut xn: Vec<f64> = vec![0.0; ns];
-    let mut xt: Vec<f64> = vec![0.0; ns];
-    let mut pos = Vec::with_capacity(u.len());
-    let mut vel = Vec::with_capacity(u.len());
-    let mut dsum = vec![0.0; n.saturating_sub(1)];
-    // hardening: the spring correction of the previous sub-step (second-order
-    // extrapolation of the held torque to the sub-step's middle)
-    let mut fc_prev = 0.0;
-    for &uk in u {
-        pos.push(x[0]);
-        vel.push(x[n]);
-        for (i, s) in dsum.iter_mut().enumerate() {
+/// A state vector: on the stack for a size known at compile time (`[f64; N]`, kept in
+/// registers), on the heap for any other.
+trait StateBuf: AsRef<[f64]> + AsMut<[f64]> {
+    fn zeros(ns: usize) -> Self;
+}
+
+impl StateBuf for Vec<f64> {
+    fn zeros(ns: usize) -> Self {
+        vec![0.0; ns]
+    }
+}
+
+impl<const N: usize> StateBuf for [f64; N] {
+    fn zeros(_: usize) -> Self {
+        [0.0; N]
+    }
+}
+
+/// One simulation of [`simulate_lanes`]: its state and what it has recorded.
+struct Lane<'a, B> {
+    u: &'a [f64],
+    x: B,
+    xn: B,
+    xt: B,
+    pos: Vec<f64>,
+    vel: Vec<f64>,
+    dsum: Vec<f64>,
+    /// Hardening: the spring correction of the previous sub-step (second-order
+    /// extrapolation of the held torque to the sub-step's middle).
+    fc_prev: f64,
+    /// The state left every bound (a spring stiffened beyond the step): no model.
+    unstable: bool,
+}
+
+impl<'a, B: StateBuf> Lane<'a, B> {
+    fn new(u: &'a [f64], start: &[f64], ns: usize, n: usize) -> Self {
+        let mut x = B::zeros(ns);
+        let m = start.len().min(ns);
+        x.as_mut()[..m].copy_from_slice(&start[..m]);
+        Lane {
+            u,
+            x,
+            xn: B::zeros(ns),
+            xt: B::zeros(ns),
+            pos: Vec::with_capacity(u.len()),
+            vel: Vec::with_capacity(u.len()),
+            dsum: vec![0.0; n.saturating_sub(1)],
+            fc_prev: 0.0,
+            unstable: false,
+        }
+    }
+
+    /// Sample `i`: record the state at the sample instant, step it over the sample, check
+    /// it.
+    #[inline(always)]
+    fn sample<const N: usize>(&mut self, s: &Setup, nl: Nl, i: usize) {
+        self.record(s.n);
+        let uk = self.u[i];
+        for _ in 0..s.sub {
+            self.sub_step::<N>(s, nl, uk);
+        }
+        self.check();
+    }
+
+    /// Record the state at the sample instant.
+    #[inline(always)]
+    fn record(&mut self, n: usize) {
+        let x = self.x.as_ref();
+        self.pos.push(x[0]);
+        self.vel.push(x[n]);
+        for (i, s) in self.dsum.iter_mut().enumerate() {
             let dx = x[i + 1] - x[i];
             *s += dx * dx;
         }
-        for _ in 0..sub {
-            match (nl, modes) {
-                (Nl::Backlash { g, .. }, Some([free, lin_m, free_m])) => {
-                    let side = |x: &[f64]| {
-                        let dx = x[k + 1] - x[k];
-                        if dx.abs() < g {
-                            0.0
-                        } else {
-                            dx.signum()
-                        }
-                    };
-                    let s0 = side(&x);
-                    let p = if s0 == 0.0 { free } else { lin_p };
-                    p.apply::<N>(&x, &mut xn, uk, -c * g * s0);
-                    if side(&xn) != s0 {
-                        xt.copy_from_slice(&x);
-                        for _ in 0..MICRO {
-                            let sj = side(&xt);
-                            let p = if sj == 0.0 { free_m } else { lin_m };
-                            p.apply::<N>(&xt, &mut xn, uk, -c * g * sj);
-                            std::mem::swap(&mut xt, &mut xn);
-                        }
-                        std::mem::swap(&mut xt, &mut xn);
+    }
+
+    /// One sub-step under the held torque `uk` [N m].
+    #[inline(always)]
+    fn sub_step<const N: usize>(&mut self, s: &Setup, nl: Nl, uk: f64) {
+        let Setup {
+            n,
+            k,
+            c,
+            ref lin_p,
+            ref modes,
+            ref bm,
+            ..
+        } = *s;
+        let ns = bm.len();
+        match (nl, modes) {
+            (Nl::Backlash { g, .. }, Some([free, lin_m, free_m])) => {
+                let side = |x: &[f64]| {
+                    let dx = x[k + 1] - x[k];
+                    if dx.abs() < g {
+                        0.0
+                    } else {
+                        dx.signum()
                     }
-                }
-                _ => match cubic_correction(nl, &x, n, k, c) {
-                    Some(fc) => {
-                        lin_p.apply::<N>(&x, &mut xn, uk, 1.5 * fc - 0.5 * fc_prev);
-                        fc_prev = fc;
+                };
+                let s0 = side(self.x.as_ref());
+                let p = if s0 == 0.0 { free } else { lin_p };
+                p.apply::<N>(self.x.as_ref(), self.xn.as_mut(), uk, -c * g * s0);
+                if side(self.xn.as_ref()) != s0 {
+                    self.xt.as_mut().copy_from_slice(self.x.as_ref());
+                    for _ in 0..MICRO {
+                        let sj = side(self.xt.as_ref());
+                        let p = if sj == 0.0 { free_m } else { lin_m };
+                        p.apply::<N>(self.xt.as_ref(), self.xn.as_mut(), uk, -c * g * sj);
+                        std::mem::swap(&mut self.xt, &mut self.xn);
                     }
-                    None => lin_p.apply::<N>(&x, &mut xn, uk, 0.0),
-                },
-            }
-            if let Nl::Friction { tc } = nl {
-                let b = bm[n];
-                if b != 0.0 {
-                    let tf = (-xn[n] / b).clamp(-tc, tc);
-                    for r in 0..ns {
-                        xn[r] += bm[r] * tf;
-                    }
+                    std::mem::swap(&mut self.xt, &mut self.xn);
                 }
             }
-            std::mem::swap(&mut x, &mut xn);
+            _ => match cubic_correction(nl, self.x.as_ref(), n, k, c) {
+                Some(fc) => {
+                    let f = 1.5 * fc - 0.5 * self.fc_prev;
+                    lin_p.apply::<N>(self.x.as_ref(), self.xn.as_mut(), uk, f);
+                    self.fc_prev = fc;
+                }
+                None => lin_p.apply::<N>(self.x.as_ref(), self.xn.as_mut(), uk, 0.0),
+            },
         }
-        if !x.iter().all(|v| v.is_finite() && v.abs() < 1e12) {
-            // unstable (a spring stiffened beyond the step): no model
-            let bad = vec![f64::NAN; u.len()];
+        if let Nl::Friction { tc } = nl {
+            let b = bm[n];
+            if b != 0.0 {
+                let xn = self.xn.as_mut();
+                let tf = (-xn[n] / b).clamp(-tc, tc);
+                for r in 0..ns {
+                    xn[r] += bm[r] * tf;
+                }
+            }
+        }
+        std::mem::swap(&mut self.x, &mut self.xn);
+    }
+
+    /// Check the state after a sample's sub-steps.
+    #[inline(always)]
+    fn check(&mut self) {
+        if !self
+            .x
+            .as_ref()
+            .iter()
+            .all(|v| v.is_finite() && v.abs() < 1e12)
+        {
+            self.unstable = true;
+        }
+    }
+
+    /// Samples `from..` alone, until the end or the state leaves the bounds.
+    fn run<const N: usize>(&mut self, s: &Setup, nl: Nl, from: usize) {
+        for i in from..self.u.len() {
+            if self.unstable {
+                break;
+            }
+            self.sample::<N>(s, nl, i);
+        }
+    }
+
+    fn finish(self, n: usize) -> SimOut {
+        if self.unstable {
+            let bad = vec![f64::NAN; self.u.len()];
             return SimOut {
                 pos: bad.clone(),
                 vel: bad,
                 defl_rms: vec![f64::NAN; n.saturating_sub(1)],
             };
         }
+        let len = self.u.len().max(1) as f64;
+        SimOut {
+            pos: self.pos,
+            vel: self.vel,
+            defl_rms: self.dsum.iter().map(|s| (s / len).sqrt()).collect(),
+        }
     }
-    let len = u.len().max(1) as f64;
-    SimOut {
-        pos,
-        vel,
-        defl_rms: dsum.iter().map(|s| (s / len).sqrt()).collect(),
+}
+
+/// Two lanes stepped together, sub-step by sub-step, while both have samples and stay in
+/// bounds; then each alone to its end.
+fn run_pair<const N: usize, B: StateBuf>(a: &mut Lane<B>, b: &mut Lane<B>, s: &Setup, nl: Nl) {
+    let common = a.u.len().min(b.u.len());
+    let mut done = 0;
+    while done < common && !a.unstable && !b.unstable {
+        a.record(s.n);
+        b.record(s.n);
+        let (ua, ub) = (a.u[done], b.u[done]);
+        for _ in 0..s.sub {
+            a.sub_step::<N>(s, nl, ua);
+            b.sub_step::<N>(s, nl, ub);
+        }
+        a.check();
+        b.check();
+        done += 1;
     }
+    a.run::<N>(s, nl, done);
+    b.run::<N>(s, nl, done);
+}
+
+/// The time loop of [`simulate_lanes`], `N` states (`N = 0`: any number, on the heap):
+/// the lanes two by two (see [`run_pair`]), each to its own length; a lane that leaves
+/// the bounds stops (its output is NaN).
+fn integrate<const N: usize>(s: &Setup, nl: Nl, us: &[&[f64]], starts: &[Vec<f64>]) -> Vec<SimOut> {
+    if N == 0 {
+        integrate_with::<N, Vec<f64>>(s, nl, us, starts)
+    } else {
+        integrate_with::<N, [f64; N]>(s, nl, us, starts)
+    }
+}
+
+fn integrate_with<const N: usize, B: StateBuf>(
+    s: &Setup,
+    nl: Nl,
+    us: &[&[f64]],
+    starts: &[Vec<f64>],
+) -> Vec<SimOut> {
+    let (n, ns) = (s.n, s.bm.len());
+    let mut lanes: Vec<Lane<B>> = us
+        .iter()
+        .zip(starts)
+        .map(|(u, start)| Lane::new(u, start, ns, n))
+        .collect();
+    for pair in lanes.chunks_mut(2) {
+        match pair {
+            [a, b] => run_pair::<N, B>(a, b, s, nl),
+            [a] => a.run::<N>(s, nl, 0),
+            _ => {}
+        }
+    }
+    lanes.into_iter().map(|l| l.finish(n)).collect()
 }
 
 /// A stepped-sine recording cut to each block's settle periods and its first `steady`
@@ -409,7 +572,11 @@ pub fn shortened_stepped(rec: &Recording, steady: usize) -> Option<Recording> {
 }
 
 /// The FRF of the simulated response, estimated exactly as the measurement's (same
-/// recording description, same estimator), on the lines `keep` of that estimate.
+/// recording description, same estimator), on the lines `keep` of that estimate. A
+/// simulation of the whole of `rec` (a stepped sine's shortened record among them) is
+/// estimated against `rec` itself, nothing copied; a shorter one against the recording's
+/// description cut to its length. The simulated motion is never searched for an encoder's
+/// grid: only `h` is returned, which the grid does not change.
 pub fn sim_frf(
     rec: &Recording,
     band: Option<[f64; 2]>,
@@ -417,8 +584,24 @@ pub fn sim_frf(
     out: &SimOut,
 ) -> Option<Vec<Complex64>> {
     let n = out.pos.len().min(rec.len());
-    // the recording's description with the simulated motion (the measured columns are
-    // not copied)
+    let motion = rec.preferred_motion()?.0;
+    let signal = match motion {
+        MotionSignal::Position => &out.pos[..n],
+        MotionSignal::Velocity => &out.vel[..n],
+        MotionSignal::Acceleration => return None,
+    };
+    let e = if n == rec.len() {
+        estimate_motion(rec, motion, signal, None, band).ok()?
+    } else {
+        estimate_motion(&cut_description(rec, n), motion, signal, None, band).ok()?
+    };
+    keep.iter().map(|&i| e.frf.h.get(i).copied()).collect()
+}
+
+/// The recording's description (time, torque command, sidecar) cut to its first `n`
+/// samples, no motion columns: for a shortened simulation (the search) of a periodic
+/// excitation, its steady periods only.
+fn cut_description(rec: &Recording, n: usize) -> Recording {
     let mut r = Recording {
         time_s: rec.time_s[..n.min(rec.time_s.len())].to_vec(),
         torque_cmd_nm: rec.torque_cmd_nm[..n].to_vec(),
@@ -429,23 +612,14 @@ pub fn sim_frf(
         sample_rate_hz: rec.sample_rate_hz,
         sidecar: rec.sidecar.clone(),
     };
-    if n < rec.len() {
-        // a shortened simulation (the search): its steady periods only
-        if let Some(e) = r.sidecar.excitation.as_mut() {
-            if e.period_samples > 0 {
-                e.periods = (n / e.period_samples)
-                    .saturating_sub(e.transient_periods)
-                    .max(1);
-            }
+    if let Some(e) = r.sidecar.excitation.as_mut() {
+        if e.period_samples > 0 {
+            e.periods = (n / e.period_samples)
+                .saturating_sub(e.transient_periods)
+                .max(1);
         }
     }
-    match rec.preferred_motion()?.0 {
-        MotionSignal::Position => r.position_rad = Some(out.pos[..n].to_vec()),
-        MotionSignal::Velocity => r.velocity_rad_s = Some(out.vel[..n].to_vec()),
-        MotionSignal::Acceleration => return None,
-    }
-    let e = estimate_frf(&r, band).ok()?;
-    keep.iter().map(|&i| e.frf.h.get(i).copied()).collect()
+    r
 }
 
 #[cfg(test)]
@@ -724,5 +898,117 @@ mod tests {
         let mut plain = rec.clone();
         plain.sidecar.excitation = None;
         assert!(shortened_stepped(&plain, 1).is_none());
+    }
+
+    /// A stepped-sine recording of a 2-mass chain with a zero position column, and the
+    /// chain (motor viscous friction: the rigid body settles within a block).
+    fn stepped_case() -> (Recording, LinExt) {
+        use crate::excitation::SteppedSineDesign;
+        use crate::recording::Sidecar;
+        let fs = 1000.0;
+        let stepped = SteppedSineDesign {
+            sample_rate_hz: fs,
+            frequencies_hz: vec![3.0, 9.0, 27.0, 81.0, 243.0],
+            min_period_samples: 100,
+            periods: 4,
+            settle_periods: 2,
+            peak_limit_nm: 1.0,
+            rms_limit_nm: 1.0,
+        }
+        .generate()
+        .unwrap();
+        let n = stepped.signal.len();
+        let rec = Recording {
+            time_s: (0..n).map(|k| k as f64 / fs).collect(),
+            torque_cmd_nm: stepped.signal.clone(),
+            position_rad: Some(vec![0.0; n]),
+            velocity_rad_s: None,
+            acceleration_rad_s2: None,
+            torque_actual_nm: None,
+            sample_rate_hz: fs,
+            sidecar: Sidecar {
+                excitation: Some(stepped.info()),
+                ..Sidecar::default()
+            },
+        };
+        let chain = Chain::new(vec![1e-3, 2e-3], vec![400.0], vec![0.05]).unwrap();
+        let mut lin = LinExt::nominal(chain);
+        lin.motor_b = 0.05;
+        (rec, lin)
+    }
+
+    fn bits(x: &[f64]) -> Vec<u64> {
+        x.iter().map(|v| v.to_bits()).collect()
+    }
+
+    /// Excitations stepped together give each one's simulation alone to the bit, for every
+    /// effect, with lanes of different lengths, and a lane that leaves the bounds (a
+    /// hardening far beyond the step) stops alone with a NaN output.
+    #[test]
+    fn lanes_equal_single_simulations() {
+        let (rec, lin) = stepped_case();
+        let (fs, u) = (rec.sample_rate_hz, &rec.torque_cmd_nm);
+        let x = simulate(&lin, Nl::None, u, fs, 1).defl_rms[0];
+        let big: Vec<f64> = u.iter().map(|t| 1e4 * t).collect();
+        let short = &u[..u.len() / 3];
+        for nl in [
+            Nl::None,
+            Nl::Friction { tc: 0.1 },
+            Nl::Backlash { k: 0, g: 0.5 * x },
+            Nl::Hardening { k: 0, xref: x },
+            Nl::GroundCubic { k3: 1e3 },
+        ] {
+            let us: [&[f64]; 3] = [u, short, &big];
+            let lanes = simulate_lanes(&lin, nl, &us, fs, 3);
+            for (lane, u) in lanes.iter().zip(us) {
+                let alone = simulate(&lin, nl, u, fs, 3);
+                assert_eq!(bits(&lane.pos), bits(&alone.pos), "{nl:?}");
+                assert_eq!(bits(&lane.vel), bits(&alone.vel), "{nl:?}");
+                assert_eq!(bits(&lane.defl_rms), bits(&alone.defl_rms), "{nl:?}");
+                assert_eq!(lane.pos.len(), u.len());
+            }
+        }
+        let blown = simulate_lanes(&lin, Nl::Hardening { k: 0, xref: 1e-9 }, &[u, short], fs, 1);
+        assert!(blown[1].pos.iter().all(|p| p.is_nan()));
+        assert_eq!(blown[1].pos.len(), short.len());
+    }
+
+    /// The simulated response's FRF equals, to the bit, the measurement's estimator on a
+    /// copy of the recording holding the simulated motion (what `sim_frf` did before it
+    /// estimated against the recording itself), for the whole record and for a shortened
+    /// one, by position and by velocity.
+    #[test]
+    fn sim_frf_equals_the_estimate_of_a_copied_recording() {
+        let (rec, lin) = stepped_case();
+        let short = shortened_stepped(&rec, 1).unwrap();
+        for rec in [rec, short] {
+            let out = simulate(
+                &lin,
+                Nl::Friction { tc: 0.05 },
+                &rec.torque_cmd_nm,
+                1000.0,
+                2,
+            );
+            for velocity in [false, true] {
+                let mut rec = rec.clone();
+                let mut copy = rec.clone();
+                copy.torque_actual_nm = None;
+                if velocity {
+                    rec.position_rad = None;
+                    rec.velocity_rad_s = Some(vec![0.0; rec.len()]);
+                    copy.position_rad = None;
+                    copy.velocity_rad_s = Some(out.vel.clone());
+                } else {
+                    copy.position_rad = Some(out.pos.clone());
+                }
+                let naive = crate::analysis::estimate_frf(&copy, None).unwrap().frf.h;
+                let keep: Vec<usize> = (0..naive.len()).collect();
+                let fast = sim_frf(&rec, None, &keep, &out).unwrap();
+                let b = |h: &[Complex64]| -> Vec<(u64, u64)> {
+                    h.iter().map(|c| (c.re.to_bits(), c.im.to_bits())).collect()
+                };
+                assert_eq!(b(&fast), b(&naive), "velocity {velocity}");
+            }
+        }
     }
 }

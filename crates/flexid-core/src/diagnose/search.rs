@@ -8,7 +8,7 @@
 
 use super::effects::{fit_linear, EffectFit, Lin, Param, Target};
 use super::lti::{Discrete, LinExt};
-use super::nlsim::{sim_frf, simulate, Nl};
+use super::nlsim::{sim_frf, simulate, simulate_lanes, Nl};
 use super::simplex;
 use super::Data;
 use crate::diagnose::Effect;
@@ -28,32 +28,41 @@ pub fn sim_model_steady(
     nl: Nl,
     steady: Option<usize>,
 ) -> Option<Vec<Vec<Complex64>>> {
-    let mut model = data
+    // each level's recording (a stepped sine: every block with its settle periods and `k`
+    // steady ones) and the samples simulated
+    let recs: Vec<(std::borrow::Cow<crate::recording::Recording>, usize)> = data
         .levels
         .iter()
         .map(|l| {
-            // a stepped sine: every block with its settle periods and `k` steady ones
-            let short = steady.and_then(|k| super::nlsim::shortened_stepped(&l.rec, k));
-            let rec = short.as_ref().unwrap_or(&l.rec);
-            let u = &rec.torque_cmd_nm;
+            let rec = match steady.and_then(|k| l.shortened.get(&l.rec, k)) {
+                Some(short) => short,
+                None => std::borrow::Cow::Borrowed(&l.rec),
+            };
+            let len = rec.torque_cmd_nm.len();
             let n = match (&rec.sidecar.excitation, steady) {
                 // realisations: each its own period, the estimate is over all of them
-                (Some(e), _) if !e.realisations.is_empty() => u.len(),
+                (Some(e), _) if !e.realisations.is_empty() => len,
                 (Some(e), Some(k)) if e.period_samples > 0 => {
-                    ((e.transient_periods + k) * e.period_samples).min(u.len())
+                    ((e.transient_periods + k) * e.period_samples).min(len)
                 }
-                _ => u.len(),
+                _ => len,
             };
-            // the spring nonlinearities act at the gear's frequency: finer sub-steps
-            let sub = match nl {
-                Nl::Backlash { .. } | Nl::Hardening { .. } | Nl::GroundCubic { .. } => {
-                    data.spring_substeps
-                }
-                _ => data.substeps,
-            };
-            let out = simulate(lin, nl, &u[..n], data.fs, sub);
-            sim_frf(rec, data.band, &l.keep, &out)
+            (rec, n)
         })
+        .collect();
+    // the spring nonlinearities act at the gear's frequency: finer sub-steps
+    let sub = match nl {
+        Nl::Backlash { .. } | Nl::Hardening { .. } | Nl::GroundCubic { .. } => data.spring_substeps,
+        _ => data.substeps,
+    };
+    let us: Vec<&[f64]> = recs.iter().map(|(r, n)| &r.torque_cmd_nm[..*n]).collect();
+    let outs = simulate_lanes(lin, nl, &us, data.fs, sub);
+    let mut model = data
+        .levels
+        .iter()
+        .zip(&recs)
+        .zip(&outs)
+        .map(|((l, (rec, _)), out)| sim_frf(rec, data.band, &l.keep, out))
         .collect::<Option<Vec<Vec<Complex64>>>>()?;
     torque_path_factor(data, lin, &mut model);
     Some(model)

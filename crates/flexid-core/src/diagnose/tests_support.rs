@@ -54,6 +54,8 @@ pub fn exact_data(lin: &LinExt, fs: f64, band_hz: &[f64; 2], lines: usize) -> (D
         io_delay: 0,
         averages: 8,
         spread_var: None,
+        shortened: Default::default(),
+        measured: None,
     };
     let data = Data {
         noise: noise::reduced_chi2(&[(lines, 8)]),

@@ -24,6 +24,7 @@
 mod error;
 pub mod lpm;
 mod periodic;
+mod plan_cache;
 pub mod quantisation;
 pub mod quantisation_correlation;
 pub mod quantisation_spectrum;

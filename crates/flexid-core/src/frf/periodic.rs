@@ -17,7 +17,7 @@ use super::error::{check_fs, FrfError};
 use super::types::{Frf, FrfKind};
 use crate::excitation::ExcitationInfo;
 use num_complex::Complex64;
-use realfft::{RealFftPlanner, RealToComplex};
+use realfft::RealToComplex;
 use std::sync::Arc;
 
 /// Default relative threshold for inferring excited lines from the input spectrum.
@@ -36,6 +36,25 @@ struct LineStats {
     m2y: f64,
     /// Sum of cross deviations (Y_p - mean Y) conj(U_p - mean U).
     m2yu: Complex64,
+}
+
+impl LineStats {
+    /// Welford's update with one more period's line `u`, `y` (unscaled DFT values, times
+    /// `scale`), `inv_p` = 1 / the periods so far including this one.
+    #[inline(always)]
+    fn update(&mut self, u: Complex64, y: Complex64, scale: f64, inv_p: f64) {
+        let u = u * scale;
+        let y = y * scale;
+        let du = u - self.mu;
+        self.mu += du * inv_p;
+        let du_new = u - self.mu;
+        let dy = y - self.my;
+        self.my += dy * inv_p;
+        let dy_new = y - self.my;
+        self.m2u += du.re * du_new.re + du.im * du_new.im;
+        self.m2y += dy.re * dy_new.re + dy.im * dy_new.im;
+        self.m2yu += dy * du_new.conj();
+    }
 }
 
 /// Output levels at the non-excited lines of a periodic experiment (and the noise level at
@@ -122,6 +141,9 @@ pub struct PeriodicEstimator {
     /// `sum_m m Y_m(0)` over the steady periods `m = 0, 1, ...`: with the mean of `Y_m(0)`,
     /// the slope of the period means (a velocity ramp, see `ramp.rs`).
     dc_moment: f64,
+    /// Statistics kept at line 0 and the given excited lines only
+    /// ([`Self::excited_lines_only`]).
+    excited_only: bool,
 }
 
 impl std::fmt::Debug for PeriodicEstimator {
@@ -170,7 +192,7 @@ impl PeriodicEstimator {
                 return Err(FrfError::LineOutOfRange { line, max });
             }
         }
-        let fft = RealFftPlanner::<f64>::new().plan_fft_forward(period_samples);
+        let fft = super::plan_cache::forward(period_samples);
         let spec_u = fft.make_output_vec();
         let spec_y = fft.make_output_vec();
         let scratch = fft.make_scratch_vec();
@@ -192,6 +214,7 @@ impl PeriodicEstimator {
             periods_seen: 0,
             stats: vec![LineStats::default(); max + 1],
             dc_moment: 0.0,
+            excited_only: false,
         })
     }
 
@@ -235,6 +258,17 @@ impl PeriodicEstimator {
         self.quantum = per_line
             .filter(|v| v.len() == self.n / 2 + 1 && v.iter().all(|p| p.is_finite() && *p >= 0.0))
             .map(RepeatingError::PerLine);
+        self
+    }
+
+    /// Keep the per-line statistics at line 0 (the ramp of a velocity) and the excited
+    /// lines given to the constructor only, not at every line of the period: the estimate
+    /// is the same to the bit, [`Self::nonexcited`] is then an error. For one line per
+    /// period (a stepped sine's block, [`super::estimate_stepped`]), where updating all
+    /// `N/2 + 1` lines took as long as the transforms. No effect when the lines are to be
+    /// inferred.
+    pub(crate) fn excited_lines_only(mut self) -> Self {
+        self.excited_only = !self.lines.is_empty();
         self
     }
 
@@ -304,18 +338,16 @@ impl PeriodicEstimator {
             let inv_p = 1.0 / p;
             let scale = 1.0 / self.n as f64;
             self.dc_moment += (p - 1.0) * self.spec_y[0].re * scale;
-            for ((s, &u), &y) in self.stats.iter_mut().zip(&self.spec_u).zip(&self.spec_y) {
-                let u = u * scale;
-                let y = y * scale;
-                let du = u - s.mu;
-                s.mu += du * inv_p;
-                let du_new = u - s.mu;
-                let dy = y - s.my;
-                s.my += dy * inv_p;
-                let dy_new = y - s.my;
-                s.m2u += du.re * du_new.re + du.im * du_new.im;
-                s.m2y += dy.re * dy_new.re + dy.im * dy_new.im;
-                s.m2yu += dy * du_new.conj();
+            if self.excited_only {
+                let (u, y) = (&self.spec_u, &self.spec_y);
+                self.stats[0].update(u[0], y[0], scale, inv_p);
+                for &k in self.lines.iter().filter(|&&k| k != 0) {
+                    self.stats[k].update(u[k], y[k], scale, inv_p);
+                }
+            } else {
+                for ((s, &u), &y) in self.stats.iter_mut().zip(&self.spec_u).zip(&self.spec_y) {
+                    s.update(u, y, scale, inv_p);
+                }
             }
         }
         self.periods_seen += 1;
@@ -453,6 +485,12 @@ impl PeriodicEstimator {
     ///
     /// Errors: as [`estimate`](Self::estimate).
     pub fn nonexcited(&self) -> Result<NonExcitedLevels, FrfError> {
+        if self.excited_only {
+            return Err(FrfError::invalid(
+                "nonexcited",
+                "statistics kept at the excited lines only",
+            ));
+        }
         let p = self.require_period()?;
         let lines = self.excited_lines()?;
         let (Some(&lo), Some(&hi)) = (lines.first(), lines.last()) else {
@@ -601,6 +639,49 @@ mod tests {
             }
         }
         out
+    }
+
+    #[test]
+    fn excited_lines_only_give_the_same_estimate_to_the_bit() {
+        let n = 60;
+        for lines in [vec![7usize], vec![1, 2, 3, 5, 11], vec![0, 4, 9]] {
+            let mut r = rng(3);
+            let per = multisine_period(n, &lines, &mut r);
+            let mut u = tile(&per, 6);
+            for (x, e) in u.iter_mut().zip(gauss(&mut r, 6 * n, 0.05)) {
+                *x += e + 0.3;
+            }
+            let mut y = Biquad::resonator(0.9, 0.1).run(&u);
+            for (x, e) in y.iter_mut().zip(gauss(&mut r, 6 * n, 0.02)) {
+                *x += e;
+            }
+            for kind in [FrfKind::Other, FrfKind::DifferencedVelocity] {
+                let est = |only: bool| {
+                    let mut e = PeriodicEstimator::new(n, &lines, 100.0, kind)
+                        .unwrap()
+                        .with_transient_periods(2);
+                    if only {
+                        e = e.excited_lines_only();
+                    }
+                    // in two chunks that split a period
+                    e.push(&u[..150], &y[..150]).unwrap();
+                    e.push(&u[150..], &y[150..]).unwrap();
+                    e
+                };
+                let (full, only) = (est(false), est(true));
+                let (a, b) = (full.estimate().unwrap(), only.estimate().unwrap());
+                let bits = |f: &Frf| -> Vec<u64> {
+                    f.h.iter()
+                        .flat_map(|h| [h.re.to_bits(), h.im.to_bits()])
+                        .chain(f.var.iter().map(|v| v.to_bits()))
+                        .chain(f.coherence.iter().flatten().map(|c| c.to_bits()))
+                        .collect()
+                };
+                assert_eq!(bits(&a), bits(&b), "{lines:?} {kind:?}");
+                assert!(full.nonexcited().is_ok());
+                assert!(only.nonexcited().is_err());
+            }
+        }
     }
 
     #[test]

@@ -40,6 +40,7 @@ pub fn estimate_stepped(
             });
         }
         let mut est = PeriodicEstimator::from_info(&b.info(), sample_rate_hz, kind)?
+            .excited_lines_only()
             .with_quantum(grid.map(|(q, x)| repeating_power(b, q, x)));
         est.push(&u[b.start..end], &y[b.start..end])?;
         let one = est.estimate()?;

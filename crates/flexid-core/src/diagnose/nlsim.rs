@@ -843,41 +843,11 @@ mod tests {
     /// samples.
     #[test]
     fn a_shortened_stepped_sine_gives_the_same_lines() {
-        use crate::excitation::SteppedSineDesign;
-        use crate::recording::Sidecar;
-        let fs = 1000.0;
-        let stepped = SteppedSineDesign {
-            sample_rate_hz: fs,
-            frequencies_hz: vec![3.0, 9.0, 27.0, 81.0, 243.0],
-            min_period_samples: 100,
-            periods: 6,
-            settle_periods: 3,
-            peak_limit_nm: 1.0,
-            rms_limit_nm: 1.0,
-        }
-        .generate()
-        .unwrap();
-        let chain = Chain::new(vec![1e-3, 2e-3], vec![400.0], vec![0.05]).unwrap();
-        let mut lin = LinExt::nominal(chain);
         // the rigid body settles in J_t/b = 0.06 s, well within a block's settle periods
         // (with a slower pole the transient left after them differs between the two)
-        lin.motor_b = 0.05;
-        let rec = Recording {
-            time_s: (0..stepped.signal.len()).map(|k| k as f64 / fs).collect(),
-            torque_cmd_nm: stepped.signal.clone(),
-            position_rad: None,
-            velocity_rad_s: None,
-            acceleration_rad_s2: None,
-            torque_actual_nm: None,
-            sample_rate_hz: fs,
-            sidecar: Sidecar {
-                excitation: Some(stepped.info()),
-                ..Sidecar::default()
-            },
-        };
+        let (rec, lin) = stepped_recording(6, 3);
+        let fs = rec.sample_rate_hz;
         // the measured motion (here: zeros) is cut alike, so the simulation knows its column
-        let mut rec = rec;
-        rec.position_rad = Some(vec![0.0; rec.torque_cmd_nm.len()]);
         let short = shortened_stepped(&rec, 1).unwrap();
         assert_eq!(short.position_rad.as_ref().unwrap().len(), short.len());
         assert!(
@@ -903,6 +873,13 @@ mod tests {
     /// A stepped-sine recording of a 2-mass chain with a zero position column, and the
     /// chain (motor viscous friction: the rigid body settles within a block).
     fn stepped_case() -> (Recording, LinExt) {
+        stepped_recording(4, 2)
+    }
+
+    /// A stepped sine at 3 .. 243 Hz (1 kHz; `periods` measured and `settle` settle
+    /// periods per block) as a recording with a zero position column, and a 2-mass chain
+    /// whose motor viscous friction lets the rigid body settle in 0.06 s.
+    fn stepped_recording(periods: usize, settle: usize) -> (Recording, LinExt) {
         use crate::excitation::SteppedSineDesign;
         use crate::recording::Sidecar;
         let fs = 1000.0;
@@ -910,8 +887,8 @@ mod tests {
             sample_rate_hz: fs,
             frequencies_hz: vec![3.0, 9.0, 27.0, 81.0, 243.0],
             min_period_samples: 100,
-            periods: 4,
-            settle_periods: 2,
+            periods,
+            settle_periods: settle,
             peak_limit_nm: 1.0,
             rms_limit_nm: 1.0,
         }

@@ -110,13 +110,16 @@ fn draw_world(spec: &Spec, rng: &mut impl Rng) -> World {
     let levels = vec![rms_low, rms_high];
     plant.torque_noise_nm = noise_factor * log_uniform(rng, 1e-3, 1e-2) * rms_low;
     plant.sensor.current_noise_nm = 2e-3 * rms_low;
+    let phase_seed = rng.random();
+    let own = own_multisine(&design, &levels);
     let reference = Reference {
         fs_hz: fs,
-        lines_hz: grid.clone(),
+        lines_hz: own.as_ref().map_or_else(|| grid.clone(), |o| o.0.clone()),
         period_samples: design.period_samples(),
         periods: design.periods,
         levels_rms_nm: levels.clone(),
-        phase_seed: rng.random(),
+        phase_seed,
+        own_periods: own.map(|o| o.1),
     };
     let motion = levels
         .iter()
@@ -155,6 +158,32 @@ pub fn peaks_of(plant: &Plant, ctx: &Context) -> Peaks {
         deflection_rad: r.deflection_rad.iter().map(|x| 6.0 * x).collect(),
         position_rad: r.position_rad.iter().map(|x| 6.0 * x).collect(),
     }
+}
+
+/// The excited lines [Hz] and one period per level [N m] of `design` when it is a periodic
+/// multisine.
+fn own_multisine(design: &Design, levels: &[f64]) -> Option<(Vec<f64>, Vec<Vec<f64>>)> {
+    if !matches!(
+        design.kind,
+        Kind::OddRandom | Kind::Schroeder | Kind::RandomPhase
+    ) {
+        return None;
+    }
+    let n = design.period_samples();
+    let mut lines = Vec::new();
+    let periods = levels
+        .iter()
+        .map(|&rms| {
+            let (u, info) = design.generate(rms);
+            lines = info
+                .excited_lines
+                .iter()
+                .map(|&k| k as f64 * design.fs_hz / n as f64)
+                .collect();
+            u[..n].to_vec()
+        })
+        .collect();
+    Some((lines, periods))
 }
 
 /// Visibility of `plant` against the nominal axis (simulated unless `linear`), and the

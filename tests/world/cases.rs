@@ -142,6 +142,10 @@ pub struct Sizing {
     pub size: f64,
     pub visibility: f64,
     pub visibility_true_chain: f64,
+    /// The visibility beyond the nominal model against the scatter the case's own
+    /// recordings show (periodic multisines only).
+    #[serde(default)]
+    pub visibility_measured: Option<f64>,
     /// Everything drawn but the size.
     pub shape: serde_json::Value,
 }

@@ -23,8 +23,8 @@ use super::plants::{motor_viscous, random_chain};
 use super::simulator::Sim;
 use super::substeps::{substeps, Peaks};
 use super::visibility::{
-    acting_band, delta_linear, delta_of, sigma_ln, simulated_response, size_for, visibility,
-    Projector, Reference,
+    acting_band, delta_linear, delta_of, measured_sigma_ln, sigma_ln, simulated_response, size_for,
+    visibility, Projector, Reference,
 };
 use flexid::model::Chain;
 use flexid::recording::{write_recording, Recording, Sidecar};
@@ -192,7 +192,7 @@ struct Judge<'a> {
     ctx: &'a Context,
     sigma: Vec<Vec<f64>>,
     projector: Projector,
-    nominal_sim: std::cell::OnceCell<Vec<Vec<flexid::Complex64>>>,
+    nominal_sim: std::cell::OnceCell<super::visibility::Simulated>,
 }
 
 impl<'a> Judge<'a> {
@@ -206,22 +206,25 @@ impl<'a> Judge<'a> {
         }
     }
 
-    fn delta(&self, plant: &Plant, linear: bool) -> Vec<Vec<flexid::Complex64>> {
+    /// `ln(H_with / H_nominal)` per level and line; `None` when the with-effect response
+    /// is not periodic ([`super::visibility::Simulated::periodic_like`]).
+    fn delta(&self, plant: &Plant, linear: bool) -> Option<Vec<Vec<flexid::Complex64>>> {
         let r = &self.ctx.reference;
         if linear {
-            return delta_linear(&self.ctx.nominal, plant, r);
+            return Some(delta_linear(&self.ctx.nominal, plant, r));
         }
         let nominal = self.nominal_sim.get_or_init(|| {
             simulated_response(&self.ctx.nominal, r, &peaks_of(&self.ctx.nominal, self.ctx))
         });
         let with = simulated_response(plant, r, &peaks_of(plant, self.ctx));
-        delta_of(nominal, &with)
+        with.periodic_like(nominal, &self.sigma)
+            .then(|| delta_of(&nominal.response, &with.response))
     }
 
     /// Visibility beyond the nominal model (what no re-fitted nominal chain absorbs), and
-    /// against the true nominal chain.
-    fn visibility(&self, plant: &Plant, linear: bool) -> (f64, f64) {
-        self.visibility_of(&self.delta(plant, linear))
+    /// against the true nominal chain; `None` when the response is not periodic.
+    fn visibility(&self, plant: &Plant, linear: bool) -> Option<(f64, f64)> {
+        self.delta(plant, linear).map(|d| self.visibility_of(&d))
     }
 
     fn visibility_of(&self, delta: &[Vec<flexid::Complex64>]) -> (f64, f64) {
@@ -229,6 +232,15 @@ impl<'a> Judge<'a> {
             visibility(&self.projector.residual(delta), &self.sigma),
             visibility(delta, &self.sigma),
         )
+    }
+
+    /// The least visibility beyond the nominal model that a diagnosis can be required to
+    /// see: the expected excess of chi-square over the `L` lines of both levels, `L v^2`,
+    /// five standard deviations (`sqrt(L)`, each line's `|D|^2 / s^2` of unit mean and
+    /// variance) above the noise alone: `v = (25 / L)^(1/4)`.
+    fn detectable(&self) -> f64 {
+        let lines: usize = self.sigma.iter().map(Vec::len).sum();
+        (25.0 / lines.max(1) as f64).powf(0.25)
     }
 }
 
@@ -239,9 +251,16 @@ fn full_size(knob: &Knob, judge: &Judge, drawn: f64, target: f64) -> (f64, f64, 
     let vis = |s: f64| {
         let mut p = judge.ctx.nominal.clone();
         knob.apply(&mut p, s);
-        judge.visibility(&p, knob.linear).0
+        // a size whose response is not periodic is too large
+        judge.visibility(&p, knob.linear).map_or(f64::MAX, |v| v.0)
     };
     let v_drawn = vis(drawn);
+    if v_drawn == f64::MAX {
+        // the drawn size already drives the axis out of a steady state: the largest size
+        // below it whose response is periodic, towards the target
+        let (s, v) = size_for(target, knob.range[0], drawn, drawn / 2.0, vis);
+        return (s, v, v_drawn);
+    }
     if v_drawn >= target {
         return (drawn, v_drawn, v_drawn);
     }
@@ -266,6 +285,13 @@ pub struct Plan {
     pub band_hz: Option<[f64; 2]>,
     pub visibility: f64,
     pub visibility_true_chain: f64,
+    /// Per sizing: `ln(H_with / H_refit)` at the applied size alone on the nominal axis
+    /// (None where its response is not periodic).
+    pub residuals: Vec<Option<Vec<Vec<flexid::Complex64>>>>,
+    /// The noise model's line scatter per level and line.
+    pub sigma: Vec<Vec<f64>>,
+    /// The least visibility a diagnosis can be required to see.
+    pub detectable: f64,
 }
 
 /// Draw the world of `spec` and size its effects (no recording yet).
@@ -292,6 +318,7 @@ pub fn plan(spec: &Spec) -> Plan {
         .collect();
     let mut plant = world.plant.clone();
     let mut sizes = Vec::new();
+    let mut residuals = Vec::new();
     for k in &knobs {
         let target = log_uniform(&mut rng, 4.0, 10.0);
         let drawn = log_uniform(&mut rng, k.typical[0], k.typical[1]);
@@ -303,7 +330,13 @@ pub fn plan(spec: &Spec) -> Plan {
         };
         let mut p = ctx.nominal.clone();
         k.apply(&mut p, size);
-        let (v, v_true) = judge.visibility(&p, k.linear);
+        let residual = judge
+            .delta(&p, k.linear)
+            .map(|d| (judge.projector.residual(&d), d));
+        let (v, v_true) = residual.as_ref().map_or((f64::MAX, f64::MAX), |(r, d)| {
+            (visibility(r, &judge.sigma), visibility(d, &judge.sigma))
+        });
+        residuals.push(residual.map(|r| r.0));
         k.apply(&mut plant, size);
         sizes.push(Sizing {
             class: k.class.into(),
@@ -317,6 +350,7 @@ pub fn plan(spec: &Spec) -> Plan {
             size,
             visibility: v,
             visibility_true_chain: v_true,
+            visibility_measured: None,
             shape: k.shape.clone(),
         });
     }
@@ -324,17 +358,20 @@ pub fn plan(spec: &Spec) -> Plan {
     let ((visibility_all, visibility_true), band_hz) = if knobs.is_empty() {
         ((0.0, 0.0), None)
     } else {
-        let delta = judge.delta(&plant, linear);
-        let band = (spec.group == Group::D)
-            .then(|| acting_band(&delta, &ctx.reference.lines_hz))
-            .flatten();
-        (judge.visibility_of(&delta), band)
+        match judge.delta(&plant, linear) {
+            Some(delta) => {
+                let band = (spec.group == Group::D)
+                    .then(|| acting_band(&delta, &ctx.reference.lines_hz))
+                    .flatten();
+                (judge.visibility_of(&delta), band)
+            }
+            None => ((f64::MAX, f64::MAX), None),
+        }
     };
-    let effects: Vec<String> = knobs
-        .iter()
-        .filter(|k| k.answer != "unexplained")
-        .map(|k| k.answer.to_string())
-        .collect();
+    // an effect the data cannot show (a refit nominal chain absorbs it, or its range ends
+    // below the detectable) is not required: the right answer is then `none`
+    let detectable = judge.detectable();
+    let effects = required(&sizes, detectable);
     Plan {
         spec: spec.clone(),
         design: world.design.clone(),
@@ -348,7 +385,26 @@ pub fn plan(spec: &Spec) -> Plan {
         band_hz,
         visibility: visibility_all,
         visibility_true_chain: visibility_true,
+        residuals,
+        sigma: judge.sigma.clone(),
+        detectable,
     }
+}
+
+/// The effects a diagnosis is required to name: those of the library whose visibility
+/// beyond the nominal model reaches `detectable`, by the noise model and, where the case's
+/// recordings measured it, by their own scatter (an effect the data cannot show is not
+/// required: the right answer is then `none`).
+fn required(sizes: &[Sizing], detectable: f64) -> Vec<String> {
+    sizes
+        .iter()
+        .filter(|s| {
+            s.answer != "unexplained"
+                && s.visibility >= detectable
+                && s.visibility_measured.is_none_or(|v| v >= detectable)
+        })
+        .map(|s| s.answer.clone())
+        .collect()
 }
 
 /// Generate `spec` into `dir` (created): two recordings `level0.csv`, `level1.csv` (low,
@@ -364,6 +420,8 @@ pub fn measure(plan: Plan, dir: &Path) -> Case {
     let steps = substeps(plant, ctx.fs_hz, &peaks_of(plant, ctx));
     let mut recordings = Vec::new();
     let mut samples = 0;
+    let own_multisine = ctx.reference.own_periods.is_some();
+    let mut measured_sigma = Vec::new();
     for (i, &rms) in ctx.reference.levels_rms_nm.iter().enumerate() {
         let (u, info) = plan.design.generate(rms);
         samples = u.len();
@@ -378,6 +436,22 @@ pub fn measure(plan: Plan, dir: &Path) -> Case {
         let out = sim.run(&u);
         let fs = ctx.fs_hz;
         let velocity = plant.sensor.output == Output::Velocity;
+        if own_multisine {
+            let reading: Vec<f64> = if velocity {
+                out.iter().map(|s| s.velocity_rad_s).collect()
+            } else {
+                out.iter().map(|s| s.position_rad).collect()
+            };
+            measured_sigma.push(measured_sigma_ln(
+                &u,
+                &reading,
+                !velocity,
+                &ctx.reference,
+                plan.design.transient_periods,
+                plan.design.periods,
+                &plan.sigma[i],
+            ));
+        }
         let rec = Recording {
             time_s: (0..u.len()).map(|k| k as f64 / fs).collect(),
             position_rad: (!velocity).then(|| out.iter().map(|s| s.position_rad).collect()),
@@ -396,13 +470,20 @@ pub fn measure(plan: Plan, dir: &Path) -> Case {
         write_recording(&p, &rec).unwrap();
         recordings.push(p);
     }
+    // each effect judged again against the scatter its recordings show
+    let mut sizes = plan.sizes.clone();
+    let mut effects = plan.effects.clone();
+    if own_multisine {
+        for (s, r) in sizes.iter_mut().zip(&plan.residuals) {
+            s.visibility_measured = Some(
+                r.as_ref()
+                    .map_or(f64::MAX, |r| visibility(r, &measured_sigma)),
+            );
+        }
+        effects = required(&sizes, plan.detectable);
+    }
     let verdict = match spec.group {
-        Group::A | Group::B => Some(
-            plan.effects
-                .first()
-                .cloned()
-                .unwrap_or_else(|| "none".into()),
-        ),
+        Group::A | Group::B => Some(effects.first().cloned().unwrap_or_else(|| "none".into())),
         Group::C => None,
         Group::D => Some("unexplained".into()),
         Group::E => Some("none".into()),
@@ -412,10 +493,10 @@ pub fn measure(plan: Plan, dir: &Path) -> Case {
         class: spec.class.into(),
         seed: spec.seed,
         masses: plan.chain.masses(),
-        effects: plan.effects.clone(),
+        effects,
         verdict,
         band_hz: plan.band_hz,
-        sizes: plan.sizes.clone(),
+        sizes,
         visibility: plan.visibility,
         visibility_true_chain: plan.visibility_true_chain,
         measurement: Measurement {

@@ -70,6 +70,8 @@ pub fn overlaps(a: [f64; 2], b: [f64; 2]) -> bool {
 pub fn right(truth: &Truth, verdict: &str, effects: &[String], bands: &[[f64; 2]]) -> bool {
     match truth.group {
         Group::A | Group::B | Group::E => truth.verdict.as_deref() == Some(verdict),
+        // a pair neither of whose effects the data can show asks for `none`
+        Group::C if truth.effects.is_empty() => verdict == "none",
         Group::C => truth.effects.iter().all(|e| effects.contains(e)),
         Group::D => {
             verdict == "unexplained"
@@ -176,6 +178,15 @@ pub fn case_line(o: &Outcome) -> String {
     );
     if o.effects.len() > 1 {
         let _ = write!(s, " [{}]", o.effects.join("+"));
+    }
+    // an effect the recordings' own scatter hides is not required (truth `none`)
+    let measured: Vec<String> = t
+        .sizes
+        .iter()
+        .filter_map(|z| z.visibility_measured.map(|v| format!("{v:.1}")))
+        .collect();
+    if !measured.is_empty() {
+        let _ = write!(s, " (vis by the records' scatter {})", measured.join(", "));
     }
     if let Some(e) = &o.error {
         let _ = write!(s, " ({e})");

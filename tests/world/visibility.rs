@@ -96,6 +96,76 @@ pub fn sigma_ln(plant: &Plant, r: &Reference) -> Vec<Vec<f64>> {
         .collect()
 }
 
+/// The scatter of `ln H` per line of one level as a recording of the case's own periodic
+/// multisine shows it: the spread of the per-period responses (`reading` differenced when
+/// it is a position) over `periods` steady periods after `transient` ones, as the standard
+/// deviation of their mean. `sigma` is the noise model's value for the same lines: the
+/// measured-to-model ratio is smoothed (median over 9 neighbouring lines, so that one
+/// period's chance does not count) and multiplies the model, which keeps its shape across
+/// resonances. A plant whose scatter grows with its excitation (a cubic spring to the
+/// ground moved by the disturbance's drift) shows less clearly than the model says.
+#[allow(clippy::too_many_arguments)]
+pub fn measured_sigma_ln(
+    u: &[f64],
+    reading: &[f64],
+    differenced: bool,
+    r: &Reference,
+    transient: usize,
+    periods: usize,
+    sigma: &[f64],
+) -> Vec<f64> {
+    let n = r.period_samples;
+    let mut planner = RealFftPlanner::<f64>::new();
+    let fft = planner.plan_fft_forward(n);
+    let spectrum = |x: Vec<f64>| {
+        let mut inp = x;
+        let mut out = fft.make_output_vec();
+        fft.process(&mut inp, &mut out)
+            .expect("an FFT of the period");
+        out
+    };
+    let bins: Vec<usize> = r
+        .lines_hz
+        .iter()
+        .map(|&f| (f * n as f64 / r.fs_hz).round() as usize)
+        .collect();
+    let per_period: Vec<Vec<Complex64>> = (transient..transient + periods)
+        .map(|p| {
+            let y: Vec<f64> = (p * n..(p + 1) * n)
+                .map(|j| {
+                    if differenced {
+                        reading[j] - reading[j - 1]
+                    } else {
+                        reading[j]
+                    }
+                })
+                .collect();
+            let (uf, yf) = (spectrum(u[p * n..(p + 1) * n].to_vec()), spectrum(y));
+            bins.iter().map(|&k| yf[k] / uf[k]).collect()
+        })
+        .collect();
+    let pf = periods as f64;
+    let ratio: Vec<f64> = (0..bins.len())
+        .map(|l| {
+            let mean = per_period.iter().map(|h| h[l]).sum::<Complex64>() / pf;
+            let var = per_period
+                .iter()
+                .map(|h| (h[l] - mean).norm_sqr())
+                .sum::<f64>()
+                / (pf - 1.0);
+            (var / pf).sqrt() / mean.norm() / sigma[l]
+        })
+        .collect();
+    (0..ratio.len())
+        .map(|l| {
+            let (a, b) = (l.saturating_sub(4), (l + 5).min(ratio.len()));
+            let mut w: Vec<f64> = ratio[a..b].to_vec();
+            w.sort_by(f64::total_cmp);
+            w[w.len() / 2] * sigma[l]
+        })
+        .collect()
+}
+
 /// `sqrt(mean |D|^2 / s^2)` over every line of every level.
 pub fn visibility(delta: &[Vec<Complex64>], sigma: &[Vec<f64>]) -> f64 {
     let (mut s, mut n) = (0.0, 0usize);
@@ -121,9 +191,10 @@ pub fn delta_linear(without: &Plant, with: &Plant, r: &Reference) -> Vec<Vec<Com
 
 /// The response per line and level of `plant` (torque command -> differenced measured
 /// position), simulated without noise on the reference multisine (two transient periods,
-/// the third analysed), with the sub-steps for `peaks`. Only ratios of such responses are
-/// used.
-pub fn simulated_response(plant: &Plant, r: &Reference, peaks: &Peaks) -> Vec<Vec<Complex64>> {
+/// the next two analysed; the response of the last), with the sub-steps for `peaks`, and
+/// `ln(H_last / H_before)` per line and level: how far the response is from periodic. Only
+/// ratios of such responses are used.
+pub fn simulated_response(plant: &Plant, r: &Reference, peaks: &Peaks) -> Simulated {
     let n = r.period_samples;
     let steps = substeps(plant, r.fs_hz, peaks);
     let mut planner = RealFftPlanner::<f64>::new();
@@ -135,25 +206,55 @@ pub fn simulated_response(plant: &Plant, r: &Reference, peaks: &Peaks) -> Vec<Ve
             .expect("an FFT of the period");
         out
     };
-    (0..r.levels_rms_nm.len())
+    let mut change = Vec::new();
+    let response = (0..r.levels_rms_nm.len())
         .map(|i| {
             let period = r.period(i);
-            let u: Vec<f64> = period.repeat(3);
+            let u: Vec<f64> = period.repeat(4);
             let mut sim = Sim::new(plant, r.fs_hz, steps, 0, true);
             sim.start_centred(&period);
             let y: Vec<f64> = sim.run(&u).iter().map(|s| s.position_rad).collect();
             // differenced: the drift of a free chain (a velocity offset) stays at DC
-            let yd: Vec<f64> = (2 * n..3 * n).map(|j| y[j] - y[j - 1]).collect();
-            let (uf, yf) = (spectrum(&u[2 * n..]), spectrum(&yd));
-            r.lines_hz
-                .iter()
-                .map(|&f| {
-                    let k = (f * n as f64 / r.fs_hz).round() as usize;
-                    yf[k] / uf[k]
-                })
-                .collect()
+            let of_period = |p: usize| {
+                let yd: Vec<f64> = (p * n..(p + 1) * n).map(|j| y[j] - y[j - 1]).collect();
+                let (uf, yf) = (spectrum(&u[p * n..(p + 1) * n]), spectrum(&yd));
+                r.lines_hz
+                    .iter()
+                    .map(|&f| {
+                        let k = (f * n as f64 / r.fs_hz).round() as usize;
+                        yf[k] / uf[k]
+                    })
+                    .collect::<Vec<Complex64>>()
+            };
+            let (before, last) = (of_period(2), of_period(3));
+            change.push(
+                last.iter()
+                    .zip(&before)
+                    .map(|(a, b)| (a / b).ln())
+                    .collect(),
+            );
+            last
         })
-        .collect()
+        .collect();
+    Simulated { response, change }
+}
+
+/// A noise-free simulated response (see [`simulated_response`]).
+pub struct Simulated {
+    /// Per level and line.
+    pub response: Vec<Vec<Complex64>>,
+    /// `ln(H_last / H_before)` of the two analysed periods, per level and line.
+    pub change: Vec<Vec<Complex64>>,
+}
+
+impl Simulated {
+    /// Whether the response repeats from period to period within the line noise `sigma`
+    /// more closely than `nominal`'s does by one line-noise RMS: a plant whose response
+    /// changes from one period to the next by more than the noise (a cubic spring to the
+    /// ground driven into chaos) has no steady state for a periodic FRF to measure.
+    pub fn periodic_like(&self, nominal: &Simulated, sigma: &[Vec<f64>]) -> bool {
+        visibility(&self.change, sigma) <= 1.0 + visibility(&nominal.change, sigma)
+    }
 }
 
 /// `ln(H_with / H_without)` from two simulated responses.
@@ -222,6 +323,10 @@ pub fn size_for(
         } else {
             b = (s, v);
         }
+    }
+    if v == f64::MAX {
+        // not periodic (see `Simulated::periodic_like`): the largest periodic size found
+        return a;
     }
     (s, v)
 }

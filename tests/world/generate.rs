@@ -23,8 +23,8 @@ use super::plants::{motor_viscous, random_chain};
 use super::simulator::Sim;
 use super::substeps::{substeps, Peaks};
 use super::visibility::{
-    acting_band, delta_linear, delta_of, measured_sigma_ln, sigma_ln, simulated_response, size_for,
-    visibility, Projector, Reference,
+    acting_band, delta_linear, delta_of, detectable, measured_sigma_ln, sigma_ln,
+    simulated_response, size_for, visibility, Projector, Reference,
 };
 use flexid::model::Chain;
 use flexid::recording::{write_recording, Recording, Sidecar};
@@ -234,13 +234,9 @@ impl<'a> Judge<'a> {
         )
     }
 
-    /// The least visibility beyond the nominal model that a diagnosis can be required to
-    /// see: the expected excess of chi-square over the `L` lines of both levels, `L v^2`,
-    /// five standard deviations (`sqrt(L)`, each line's `|D|^2 / s^2` of unit mean and
-    /// variance) above the noise alone: `v = (25 / L)^(1/4)`.
+    /// The least visibility a diagnosis can be required to see ([`detectable`]).
     fn detectable(&self) -> f64 {
-        let lines: usize = self.sigma.iter().map(Vec::len).sum();
-        (25.0 / lines.max(1) as f64).powf(0.25)
+        detectable(&self.sigma)
     }
 }
 

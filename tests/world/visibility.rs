@@ -166,6 +166,15 @@ pub fn measured_sigma_ln(
         .collect()
 }
 
+/// The least visibility beyond the nominal model that a diagnosis can be required to
+/// see: the expected excess of chi-square over the `L` lines of both levels, `L v^2`,
+/// five standard deviations (`sqrt(L)`, each line's `|D|^2 / s^2` of unit mean and
+/// variance) above the noise alone: `v = (25 / L)^(1/4)`.
+pub fn detectable(sigma: &[Vec<f64>]) -> f64 {
+    let lines: usize = sigma.iter().map(Vec::len).sum();
+    (25.0 / lines.max(1) as f64).powf(0.25)
+}
+
 /// `sqrt(mean |D|^2 / s^2)` over every line of every level.
 pub fn visibility(delta: &[Vec<Complex64>], sigma: &[Vec<f64>]) -> f64 {
     let (mut s, mut n) = (0.0, 0usize);
@@ -464,22 +473,20 @@ impl Projector {
     }
 
     /// `delta` (`ln(H_with / H_nominal)` per level and line) less what the re-fitted
-    /// nominal chain explains: `ln(H_with / H_refit)`. The refit follows the change by
+    /// nominal chain explains: `ln(H_with / H_refit)`. The refit starts from the nominal
+    /// chain; where it leaves more than the line noise, it also follows the change by
     /// continuation (the targets `H_nominal exp(t delta)`, `t` = 1/8 .. 1, each refit
-    /// starting from the one before), because a local search from the nominal chain stops
-    /// in another basin when a lightly damped resonance has moved by more than its width.
+    /// starting from the one before), because a local search from the nominal chain can stop
+    /// in another basin when a lightly damped resonance has moved by more than its width;
+    /// the better of the two is kept.
     pub fn residual(&self, delta: &[Vec<Complex64>]) -> Vec<Vec<Complex64>> {
         let params = self.params();
         // the phase unwrapped along the lines, so that a fraction of the change is a
         // fraction of a moving resonance's phase turn
         let delta: Vec<Vec<Complex64>> = delta.iter().map(|d| unwrapped(d)).collect();
         let start = vec![0.0; params.len()];
-        let mut x = start.clone();
-        let mut r = Vec::new();
-        let mut cost = f64::INFINITY;
-        for stage in 1..=STAGES {
-            let t = stage as f64 / STAGES as f64;
-            let target: Vec<Vec<Complex64>> = delta
+        let target_of = |t: f64| -> Vec<Vec<Complex64>> {
+            delta
                 .iter()
                 .map(|d| {
                     d.iter()
@@ -487,19 +494,27 @@ impl Projector {
                         .map(|(d, h)| (t * d).exp() * h)
                         .collect()
                 })
-                .collect();
-            let iterations = if stage == STAGES { 100 } else { 15 };
-            (x, r, cost) = self.refit(&params, &target, x, iterations);
-            if stage == STAGES {
-                // and directly from the nominal chain, where the path led elsewhere
-                let (_, direct, direct_cost) = self.refit(&params, &target, start.clone(), 100);
-                if direct_cost < cost {
-                    r = direct;
-                }
-            }
+                .collect()
+        };
+        let target = target_of(1.0);
+        let (_, direct, direct_cost) = self.refit(&params, &target, start.clone(), 100);
+        if visibility(&direct, &self.sigma) < detectable(&self.sigma) {
+            // below what a diagnosis can see: another path cannot change the answer
+            return direct;
         }
-        let _ = cost;
-        r
+        let mut x = start;
+        let mut r = Vec::new();
+        let mut cost = f64::INFINITY;
+        for stage in 1..=STAGES {
+            let t = stage as f64 / STAGES as f64;
+            let iterations = if stage == STAGES { 100 } else { 15 };
+            (x, r, cost) = self.refit(&params, &target_of(t), x, iterations);
+        }
+        if direct_cost <= cost {
+            direct
+        } else {
+            r
+        }
     }
 
     /// The chain `x` refitted to `target` by damped Gauss-Newton within a trust region
@@ -518,20 +533,18 @@ impl Projector {
         let mut lambda = 1e-3;
         for _ in 0..iterations {
             // d ln H / d x_j at x, central differences
+            // forward differences from the response at x (the refit needs directions, not
+            // digits)
             let eps = 1e-6;
+            let here = self.response(&self.plant(params, &x));
             let columns: Vec<Vec<Complex64>> = (0..m)
                 .map(|j| {
                     let mut up = x.clone();
                     up[j] += eps;
-                    let mut down = x.clone();
-                    down[j] -= eps;
-                    let (hu, hd) = (
-                        self.response(&self.plant(params, &up)),
-                        self.response(&self.plant(params, &down)),
-                    );
-                    hu.iter()
-                        .zip(&hd)
-                        .map(|(u, d)| (u / d).ln() / (2.0 * eps))
+                    self.response(&self.plant(params, &up))
+                        .iter()
+                        .zip(&here)
+                        .map(|(u, h)| (u / h).ln() / eps)
                         .collect()
                 })
                 .collect();

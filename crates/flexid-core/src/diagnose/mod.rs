@@ -885,7 +885,14 @@ fn diagnose_from(
     notes.splice(1..1, ground_note);
     if let Some(tp) = &data.torque {
         notes.push(tp.describe());
-        torque_path::drop_contradicted(tp, data.levels[0].io_delay, &mut fits, &mut notes);
+        let expected = data.noise.mean * data.lines() as f64;
+        torque_path::drop_contradicted(
+            tp,
+            data.levels[0].io_delay,
+            expected,
+            &mut fits,
+            &mut notes,
+        );
     }
     keep_better_gravity(&mut fits, ground_as_gravity);
     gravity_beyond_viscous(data, &mut fits, &viscous, &mut notes);
@@ -1055,7 +1062,14 @@ fn fit_next(
         }
     }
     if let Some(tp) = &data.torque {
-        torque_path::drop_contradicted(tp, data.levels[0].io_delay, &mut fits, &mut Vec::new());
+        let expected = data.noise.mean * data.lines() as f64;
+        torque_path::drop_contradicted(
+            tp,
+            data.levels[0].io_delay,
+            expected,
+            &mut fits,
+            &mut Vec::new(),
+        );
     }
     fits
 }

@@ -194,7 +194,14 @@ impl TorquePath {
     ///   latency of the readings is in both and is no contradiction).
     ///
     /// Candidates without a loop or a delay make no claim about the torque path.
-    pub fn contradicts(&self, fit: &EffectFit, io_delay: u32) -> bool {
+    ///
+    /// `expected_chi2` is what noise alone gives the candidate's fit (the line noise times
+    /// its lines): where the fit ends above it, its model misses more than the noise and
+    /// its delay carries that misfit too (a delay fitted on top of another effect whose
+    /// parameters are held: 0.83 +- 0.05 samples where the truth is 1.02), so the delay's
+    /// standard deviation is scaled by `sqrt(chi2 / expected_chi2)` (the Birge ratio)
+    /// before the whole samples are compared.
+    pub fn contradicts(&self, fit: &EffectFit, io_delay: u32, expected_chi2: f64) -> bool {
         if self.shape != Shape::Clean {
             return false;
         }
@@ -223,7 +230,12 @@ impl TorquePath {
                     f64::INFINITY
                 }
             });
-        let reach = noise::SIGNIFICANT_SIGMA * sd;
+        let birge = if expected_chi2 > 0.0 {
+            (fit.chi2 / expected_chi2).max(1.0).sqrt()
+        } else {
+            1.0
+        };
+        let reach = noise::SIGNIFICANT_SIGMA * sd * birge;
         // the candidate's whole samples, from its delay's lowest to its highest plausible value
         let lo = ((lin.delay_s - reach).max(0.0) / ts + io_delay as f64 + 1e-9).floor();
         let hi = ((lin.delay_s + reach) / ts + io_delay as f64 + 1e-9).floor();
@@ -381,16 +393,17 @@ impl TorquePath {
     }
 }
 
-/// Drop the candidates whose torque path the reading contradicts ([`TorquePath::contradicts`]),
-/// with a note for each.
+/// Drop the candidates whose torque path the reading contradicts ([`TorquePath::contradicts`],
+/// `expected_chi2` what noise alone gives their fits), with a note for each.
 pub fn drop_contradicted(
     tp: &TorquePath,
     io_delay: u32,
+    expected_chi2: f64,
     fits: &mut Vec<EffectFit>,
     notes: &mut Vec<String>,
 ) {
     fits.retain(|f| {
-        let bad = tp.contradicts(f, io_delay);
+        let bad = tp.contradicts(f, io_delay, expected_chi2);
         if bad {
             let claim = match f.lin.current_loop {
                 Some(lp) => format!("current loop (order {}, {:.1} Hz)", lp.order, lp.bandwidth_hz),
@@ -649,17 +662,35 @@ mod tests {
         assert_eq!(tp.shape, Shape::Clean, "{}", tp.describe());
         assert!((tp.clean.gain - 0.98).abs() < 1e-3);
         assert_eq!(tp.clean.delay_s, 0.0);
-        assert!(!tp.contradicts(&candidate(None, 0.0, 0.0), 0));
-        assert!(tp.contradicts(&candidate(Some(loop1(300.0)), 0.0, 0.0), 0));
+        assert!(!tp.contradicts(&candidate(None, 0.0, 0.0), 0, 0.0));
+        assert!(tp.contradicts(&candidate(Some(loop1(300.0)), 0.0, 0.0), 0, 0.0));
         // a loop far above the band is the command itself
-        assert!(!tp.contradicts(&candidate(Some(loop1(1e9)), 0.0, 0.0), 0));
+        assert!(!tp.contradicts(&candidate(Some(loop1(1e9)), 0.0, 0.0), 0, 0.0));
         // a part of a sample does not show; whole samples do, within the candidate's reach
-        assert!(!tp.contradicts(&candidate(None, 0.6 / fs, 0.01 / fs), 0));
-        assert!(tp.contradicts(&candidate(None, 2.7 / fs, 0.01 / fs), 0));
-        assert!(!tp.contradicts(&candidate(None, 1.02 / fs, 0.01 / fs), 0));
-        assert!(tp.contradicts(&candidate(None, 1.1 / fs, 0.01 / fs), 0));
+        assert!(!tp.contradicts(&candidate(None, 0.6 / fs, 0.01 / fs), 0, 0.0));
+        assert!(tp.contradicts(&candidate(None, 2.7 / fs, 0.01 / fs), 0, 0.0));
+        assert!(!tp.contradicts(&candidate(None, 1.02 / fs, 0.01 / fs), 0, 0.0));
+        assert!(tp.contradicts(&candidate(None, 1.1 / fs, 0.01 / fs), 0, 0.0));
         // the recording's own whole-sample delay counts
-        assert!(tp.contradicts(&candidate(None, 0.6 / fs, 0.01 / fs), 1));
+        assert!(tp.contradicts(&candidate(None, 0.6 / fs, 0.01 / fs), 1, 0.0));
+    }
+
+    /// A delay fitted on top of another effect, biased by that effect's held parameters
+    /// (0.83 +- 0.05 samples where the reading shows one whole sample): contradicted when
+    /// its fit is within the noise, admitted when the fit's chi² is ten times what noise
+    /// gives (its reach scaled by the Birge ratio sqrt(10)).
+    #[test]
+    fn a_delay_whose_fit_misses_more_than_the_noise_reaches_further() {
+        let fs = 1000.0;
+        let tp = TorquePath::from_levels(levels_of(None, 1.02 / fs, 1.0, fs, 1e-3), fs);
+        assert_eq!(tp.shape, Shape::Clean, "{}", tp.describe());
+        let mut c = candidate(None, 0.83 / fs, 0.05 / fs);
+        c.chi2 = 1000.0;
+        assert!(tp.contradicts(&c, 0, 1000.0));
+        c.chi2 = 10_000.0;
+        assert!(!tp.contradicts(&c, 0, 1000.0));
+        // an expected chi² unknown (0): no scaling
+        assert!(tp.contradicts(&c, 0, 0.0));
     }
 
     #[test]
@@ -667,9 +698,9 @@ mod tests {
         let fs = 1000.0;
         let tp = TorquePath::from_levels(levels_of(None, 2.3 / fs, 1.0, fs, 1e-3), fs);
         assert_eq!(tp.shape, Shape::Clean, "{}", tp.describe());
-        assert!(!tp.contradicts(&candidate(None, 2.3 / fs, 0.02 / fs), 0));
-        assert!(tp.contradicts(&candidate(None, 0.4 / fs, 0.02 / fs), 0));
-        assert!(!tp.contradicts(&candidate(None, 0.4 / fs, 0.02 / fs), 2));
+        assert!(!tp.contradicts(&candidate(None, 2.3 / fs, 0.02 / fs), 0, 0.0));
+        assert!(tp.contradicts(&candidate(None, 0.4 / fs, 0.02 / fs), 0, 0.0));
+        assert!(!tp.contradicts(&candidate(None, 0.4 / fs, 0.02 / fs), 2, 0.0));
     }
 
     #[test]
@@ -681,8 +712,8 @@ mod tests {
         let lp = tp.with_loop.lp.unwrap();
         assert_eq!(lp.order, 2);
         assert!((lp.bandwidth_hz / 220.0 - 1.0).abs() < 0.02, "{lp:?}");
-        assert!(!tp.contradicts(&candidate(Some(truth), 0.4 / fs, 0.0), 0));
-        assert!(!tp.contradicts(&candidate(None, 2.7 / fs, 0.0), 0));
+        assert!(!tp.contradicts(&candidate(Some(truth), 0.4 / fs, 0.0), 0, 0.0));
+        assert!(!tp.contradicts(&candidate(None, 2.7 / fs, 0.0), 0, 0.0));
     }
 
     #[test]

@@ -106,10 +106,42 @@ impl Prop {
 
 /// Simulated motor position and velocity at the sample instants, and the RMS deflection
 /// of each coupling.
+#[derive(Debug, Clone, Default)]
 pub struct SimOut {
+    /// Motor position [rad] per sample (empty when not recorded: [`Record`]).
     pub pos: Vec<f64>,
+    /// Motor velocity [rad/s] per sample (empty when not recorded: [`Record`]).
     pub vel: Vec<f64>,
+    /// RMS deflection of each coupling [rad].
     pub defl_rms: Vec<f64>,
+}
+
+/// Which of the motor's motions a simulation records at the sample instants (the search
+/// estimates one of them: the other would be written for nothing, 8 bytes a sample).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Record {
+    Both,
+    Position,
+    Velocity,
+}
+
+impl Record {
+    /// The motion [`sim_frf`] estimates for `rec` (both when the recording has none).
+    pub fn for_estimate(rec: &Recording) -> Record {
+        match rec.preferred_motion().map(|m| m.0) {
+            Some(MotionSignal::Position) => Record::Position,
+            Some(MotionSignal::Velocity) => Record::Velocity,
+            _ => Record::Both,
+        }
+    }
+
+    fn position(self) -> bool {
+        self != Record::Velocity
+    }
+
+    fn velocity(self) -> bool {
+        self != Record::Position
+    }
 }
 
 /// The chain `lin` with the effect `nl` under the torque command `u` [N m] at `fs` [Hz],
@@ -133,6 +165,26 @@ pub fn simulate_lanes(
     fs: f64,
     substeps: usize,
 ) -> Vec<SimOut> {
+    let mut outs = Vec::new();
+    simulate_lanes_into(lin, nl, us, fs, substeps, Record::Both, &mut outs);
+    outs
+}
+
+/// [`simulate_lanes`] recording `record` only, into `outs` (one [`SimOut`] per excitation
+/// afterwards): the vectors `outs` holds on entry are written again, so a caller that
+/// keeps them simulates without allocating (a fresh buffer of 10⁵ samples and more is
+/// fresh memory, a page fault every 512 samples). Equal to the bit to [`simulate_lanes`]
+/// in what is recorded.
+pub fn simulate_lanes_into(
+    lin: &LinExt,
+    nl: Nl,
+    us: &[&[f64]],
+    fs: f64,
+    substeps: usize,
+    record: Record,
+    outs: &mut Vec<SimOut>,
+) {
+    outs.resize_with(us.len(), SimOut::default);
     let s = setup(lin, nl, fs, substeps);
     let starts: Vec<Vec<f64>> = us
         .iter()
@@ -145,10 +197,10 @@ pub fn simulate_lanes(
         .collect();
     // fixed state sizes (the chain's 2n states, no current loop) unroll and vectorise
     match s.bm.len() {
-        4 => integrate::<4>(&s, nl, us, &starts),
-        6 => integrate::<6>(&s, nl, us, &starts),
-        8 => integrate::<8>(&s, nl, us, &starts),
-        _ => integrate::<0>(&s, nl, us, &starts),
+        4 => integrate_with::<4, [f64; 4]>(&s, nl, us, &starts, record, outs),
+        6 => integrate_with::<6, [f64; 6]>(&s, nl, us, &starts, record, outs),
+        8 => integrate_with::<8, [f64; 8]>(&s, nl, us, &starts, record, outs),
+        _ => integrate_with::<0, Vec<f64>>(&s, nl, us, &starts, record, outs),
     }
 }
 
@@ -308,6 +360,7 @@ struct Lane<'a, B> {
     x: B,
     xn: B,
     xt: B,
+    record: Record,
     pos: Vec<f64>,
     vel: Vec<f64>,
     dsum: Vec<f64>,
@@ -319,18 +372,37 @@ struct Lane<'a, B> {
 }
 
 impl<'a, B: StateBuf> Lane<'a, B> {
-    fn new(u: &'a [f64], start: &[f64], ns: usize, n: usize) -> Self {
+    /// A lane from `start`, recording `record` into the buffers of `spare` (emptied).
+    fn new(
+        u: &'a [f64],
+        start: &[f64],
+        ns: usize,
+        n: usize,
+        record: Record,
+        spare: SimOut,
+    ) -> Self {
         let mut x = B::zeros(ns);
         let m = start.len().min(ns);
         x.as_mut()[..m].copy_from_slice(&start[..m]);
+        let buffer = |mut v: Vec<f64>, wanted: bool| {
+            v.clear();
+            if wanted {
+                v.reserve(u.len());
+            }
+            v
+        };
+        let mut dsum = spare.defl_rms;
+        dsum.clear();
+        dsum.resize(n.saturating_sub(1), 0.0);
         Lane {
             u,
             x,
             xn: B::zeros(ns),
             xt: B::zeros(ns),
-            pos: Vec::with_capacity(u.len()),
-            vel: Vec::with_capacity(u.len()),
-            dsum: vec![0.0; n.saturating_sub(1)],
+            record,
+            pos: buffer(spare.pos, record.position()),
+            vel: buffer(spare.vel, record.velocity()),
+            dsum,
             fc_prev: 0.0,
             unstable: false,
         }
@@ -352,8 +424,12 @@ impl<'a, B: StateBuf> Lane<'a, B> {
     #[inline(always)]
     fn record(&mut self, n: usize) {
         let x = self.x.as_ref();
-        self.pos.push(x[0]);
-        self.vel.push(x[n]);
+        if self.record.position() {
+            self.pos.push(x[0]);
+        }
+        if self.record.velocity() {
+            self.vel.push(x[n]);
+        }
         for (i, s) in self.dsum.iter_mut().enumerate() {
             let dx = x[i + 1] - x[i];
             *s += dx * dx;
@@ -442,21 +518,26 @@ impl<'a, B: StateBuf> Lane<'a, B> {
         }
     }
 
+    /// The lane's [`SimOut`] in its own buffers (NaN throughout when it left the bounds).
     fn finish(self, n: usize) -> SimOut {
+        let (mut pos, mut vel, mut defl_rms) = (self.pos, self.vel, self.dsum);
         if self.unstable {
-            let bad = vec![f64::NAN; self.u.len()];
-            return SimOut {
-                pos: bad.clone(),
-                vel: bad,
-                defl_rms: vec![f64::NAN; n.saturating_sub(1)],
+            let bad = |v: &mut Vec<f64>, wanted: bool, len: usize| {
+                v.clear();
+                if wanted {
+                    v.resize(len, f64::NAN);
+                }
             };
+            bad(&mut pos, self.record.position(), self.u.len());
+            bad(&mut vel, self.record.velocity(), self.u.len());
+            bad(&mut defl_rms, true, n.saturating_sub(1));
+            return SimOut { pos, vel, defl_rms };
         }
         let len = self.u.len().max(1) as f64;
-        SimOut {
-            pos: self.pos,
-            vel: self.vel,
-            defl_rms: self.dsum.iter().map(|s| (s / len).sqrt()).collect(),
+        for s in defl_rms.iter_mut() {
+            *s = (*s / len).sqrt();
         }
+        SimOut { pos, vel, defl_rms }
     }
 }
 
@@ -481,28 +562,23 @@ fn run_pair<const N: usize, B: StateBuf>(a: &mut Lane<B>, b: &mut Lane<B>, s: &S
     b.run::<N>(s, nl, done);
 }
 
-/// The time loop of [`simulate_lanes`], `N` states (`N = 0`: any number, on the heap):
-/// the lanes two by two (see [`run_pair`]), each to its own length; a lane that leaves
-/// the bounds stops (its output is NaN).
-fn integrate<const N: usize>(s: &Setup, nl: Nl, us: &[&[f64]], starts: &[Vec<f64>]) -> Vec<SimOut> {
-    if N == 0 {
-        integrate_with::<N, Vec<f64>>(s, nl, us, starts)
-    } else {
-        integrate_with::<N, [f64; N]>(s, nl, us, starts)
-    }
-}
-
+/// The time loop of [`simulate_lanes`], `N` states in a `B` (`N = 0`: any number, on the
+/// heap): the lanes two by two (see [`run_pair`]), each to its own length; a lane that
+/// leaves the bounds stops (its output is NaN).
 fn integrate_with<const N: usize, B: StateBuf>(
     s: &Setup,
     nl: Nl,
     us: &[&[f64]],
     starts: &[Vec<f64>],
-) -> Vec<SimOut> {
+    record: Record,
+    outs: &mut Vec<SimOut>,
+) {
     let (n, ns) = (s.n, s.bm.len());
     let mut lanes: Vec<Lane<B>> = us
         .iter()
         .zip(starts)
-        .map(|(u, start)| Lane::new(u, start, ns, n))
+        .zip(outs.drain(..))
+        .map(|((u, start), spare)| Lane::new(u, start, ns, n, record, spare))
         .collect();
     for pair in lanes.chunks_mut(2) {
         match pair {
@@ -511,7 +587,7 @@ fn integrate_with<const N: usize, B: StateBuf>(
             _ => {}
         }
     }
-    lanes.into_iter().map(|l| l.finish(n)).collect()
+    outs.extend(lanes.into_iter().map(|l| l.finish(n)));
 }
 
 /// A stepped-sine recording cut to each block's settle periods and its first `steady`
@@ -948,6 +1024,44 @@ mod tests {
         let blown = simulate_lanes(&lin, Nl::Hardening { k: 0, xref: 1e-9 }, &[u, short], fs, 1);
         assert!(blown[1].pos.iter().all(|p| p.is_nan()));
         assert_eq!(blown[1].pos.len(), short.len());
+    }
+
+    /// A simulation recording one motion into kept buffers (left over from other, longer
+    /// and blown-up simulations) records it to the bit as [`simulate_lanes`] does, and
+    /// leaves the other empty; a blown-up lane is NaN in the recorded motion only.
+    #[test]
+    fn recording_one_motion_into_kept_buffers_equals_fresh_lanes() {
+        let (rec, lin) = stepped_case();
+        let (fs, u) = (rec.sample_rate_hz, &rec.torque_cmd_nm);
+        let x = simulate(&lin, Nl::None, u, fs, 1).defl_rms[0];
+        let short = &u[..u.len() / 3];
+        let mut kept = Vec::new();
+        for nl in [
+            Nl::Hardening { k: 0, xref: 1e-9 },
+            Nl::Friction { tc: 0.1 },
+            Nl::Backlash { k: 0, g: 0.5 * x },
+            Nl::Hardening { k: 0, xref: x },
+        ] {
+            for (us, record) in [
+                ([short, u], Record::Position),
+                ([u, short], Record::Velocity),
+                ([short, short], Record::Both),
+            ] {
+                let fresh = simulate_lanes(&lin, nl, &us, fs, 2);
+                simulate_lanes_into(&lin, nl, &us, fs, 2, record, &mut kept);
+                assert_eq!(kept.len(), 2);
+                for (k, f) in kept.iter().zip(&fresh) {
+                    let (want_pos, want_vel) = match record {
+                        Record::Position => (bits(&f.pos), vec![]),
+                        Record::Velocity => (vec![], bits(&f.vel)),
+                        Record::Both => (bits(&f.pos), bits(&f.vel)),
+                    };
+                    assert_eq!(bits(&k.pos), want_pos, "{nl:?} {record:?}");
+                    assert_eq!(bits(&k.vel), want_vel, "{nl:?} {record:?}");
+                    assert_eq!(bits(&k.defl_rms), bits(&f.defl_rms), "{nl:?} {record:?}");
+                }
+            }
+        }
     }
 
     /// The simulated response's FRF equals, to the bit, the measurement's estimator on a

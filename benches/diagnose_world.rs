@@ -17,8 +17,12 @@
 //!
 //! ```text
 //! cargo bench --bench diagnose_world -- [--cases K] [--group A|B|C|D|E]... [--class NAME]
-//!                                       [--seed S] [--held-out] [--verbose]
+//!                                       [--excitation KIND] [--seed S] [--held-out] [--verbose]
 //! ```
+//!
+//! `--excitation KIND` (`odd_random`, `schroeder`, `random_phase`, `swept_sine`,
+//! `stepped_sine`): of the cases selected so, only those whose drawn excitation is `KIND`
+//! (the same seeds, the others skipped before they are generated).
 //!
 //! `--cases K`: cases per class and group (default 5). Seeds: case `k` of class `c` in
 //! group `g` is `base + 10000 g + 100 c + k`. **Development seeds: base 50000** (the
@@ -40,7 +44,7 @@ use flexid::recording::read_recording;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Mutex;
 use world::cases::{read_truth, seed_of, Group, Spec, GROUPS};
-use world::generate::generate;
+use world::generate::{drawn_kind, generate};
 use world::scoring::{case_line, outcome, report, world_z2, Outcome};
 
 /// The development seed base.
@@ -116,6 +120,7 @@ fn main() {
     let mut cases = 5usize;
     let mut groups: Vec<Group> = Vec::new();
     let mut only: Option<String> = None;
+    let mut excitation: Option<String> = None;
     let mut base = DEV_SEED;
     let mut held_out = false;
     let mut verbose = std::env::var_os("WORLD_VERBOSE").is_some();
@@ -135,6 +140,10 @@ fn main() {
             }
             "--class" => {
                 only = Some(value(i));
+                i += 1;
+            }
+            "--excitation" => {
+                excitation = Some(value(i));
                 i += 1;
             }
             "--seed" => {
@@ -164,12 +173,19 @@ fn main() {
                 continue;
             }
             for k in 0..cases {
-                specs.push(Spec {
+                let spec = Spec {
                     group: *g,
                     class,
                     seed: seed_of(base, *g, ci, k),
                     fs_hz: None,
-                });
+                };
+                if excitation
+                    .as_deref()
+                    .is_some_and(|e| e != drawn_kind(&spec).name())
+                {
+                    continue;
+                }
+                specs.push(spec);
             }
         }
     }

@@ -291,6 +291,13 @@ pub struct Plan {
 }
 
 /// Draw the world of `spec` and size its effects (no recording yet).
+/// The excitation kind [`plan`] draws for `spec` (the world drawn alone, no effect sized,
+/// nothing simulated): to select cases by excitation before generating them.
+pub fn drawn_kind(spec: &Spec) -> Kind {
+    let mut rng = rand::rngs::StdRng::seed_from_u64(spec.seed ^ 0x3017_d1a6_0a1d);
+    draw_world(spec, &mut rng).design.kind
+}
+
 pub fn plan(spec: &Spec) -> Plan {
     let mut rng = rand::rngs::StdRng::seed_from_u64(spec.seed ^ 0x3017_d1a6_0a1d);
     let world = draw_world(spec, &mut rng);

@@ -15,6 +15,7 @@ mod effect;
 pub mod effects;
 pub mod ground_spring;
 pub mod json;
+pub mod kept_outputs;
 pub mod localise;
 pub mod lti;
 pub mod modal;

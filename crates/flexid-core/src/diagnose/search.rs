@@ -7,8 +7,9 @@
 //! polished by Levenberg-Marquardt with a hybrid Jacobian ([`polish_spring`]).
 
 use super::effects::{fit_linear, EffectFit, Lin, Param, Target};
+use super::kept_outputs;
 use super::lti::{Discrete, LinExt};
-use super::nlsim::{sim_frf, simulate, simulate_lanes, Nl};
+use super::nlsim::{sim_frf, simulate, simulate_lanes_into, Nl, Record};
 use super::simplex;
 use super::Data;
 use crate::diagnose::Effect;
@@ -56,14 +57,22 @@ pub fn sim_model_steady(
         _ => data.substeps,
     };
     let us: Vec<&[f64]> = recs.iter().map(|(r, n)| &r.torque_cmd_nm[..*n]).collect();
-    let outs = simulate_lanes(lin, nl, &us, data.fs, sub);
-    let mut model = data
-        .levels
-        .iter()
-        .zip(&recs)
-        .zip(&outs)
-        .map(|((l, (rec, _)), out)| sim_frf(rec, data.band, &l.keep, out))
-        .collect::<Option<Vec<Vec<Complex64>>>>()?;
+    // only the motion the estimate reads, into the thread's kept vectors
+    let mut record = recs
+        .first()
+        .map_or(Record::Both, |(r, _)| Record::for_estimate(r));
+    if recs.iter().any(|(r, _)| Record::for_estimate(r) != record) {
+        record = Record::Both;
+    }
+    let mut model = kept_outputs::with(|outs| {
+        simulate_lanes_into(lin, nl, &us, data.fs, sub, record, outs);
+        data.levels
+            .iter()
+            .zip(&recs)
+            .zip(outs.iter())
+            .map(|((l, (rec, _)), out)| sim_frf(rec, data.band, &l.keep, out))
+            .collect::<Option<Vec<Vec<Complex64>>>>()
+    })?;
     torque_path_factor(data, lin, &mut model);
     Some(model)
 }

@@ -886,15 +886,8 @@ fn diagnose_from(
     notes.splice(1..1, ground_note);
     if let Some(tp) = &data.torque {
         notes.push(tp.describe());
-        let expected = data.noise.mean * data.lines() as f64;
-        torque_path::drop_contradicted(
-            tp,
-            data.levels[0].io_delay,
-            expected,
-            &mut fits,
-            &mut notes,
-        );
     }
+    drop_contradicted_by_reading(data, &mut fits, &mut notes);
     keep_better_gravity(&mut fits, ground_as_gravity);
     gravity_beyond_viscous(data, &mut fits, &viscous, &mut notes);
 
@@ -1062,17 +1055,17 @@ fn fit_next(
             fits.extend(effects::hardening::fit(data, base));
         }
     }
+    drop_contradicted_by_reading(data, &mut fits, &mut Vec::new());
+    fits
+}
+
+/// Drop the candidates the drive's torque reading contradicts, if there is one
+/// ([`torque_path::drop_contradicted`], against what noise alone gives a fit on `data`).
+fn drop_contradicted_by_reading(data: &Data, fits: &mut Vec<EffectFit>, notes: &mut Vec<String>) {
     if let Some(tp) = &data.torque {
         let expected = data.noise.mean * data.lines() as f64;
-        torque_path::drop_contradicted(
-            tp,
-            data.levels[0].io_delay,
-            expected,
-            &mut fits,
-            &mut Vec::new(),
-        );
+        torque_path::drop_contradicted(tp, data.levels[0].io_delay, expected, fits, notes);
     }
-    fits
 }
 
 /// Start frequencies of an extra mode from the gap of `model`: the four most significant

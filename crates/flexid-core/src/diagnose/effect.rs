@@ -66,6 +66,15 @@ impl Effect {
         }
     }
 
+    /// A candidate whose model is linear (an extension of the chain's FRF: fitted by
+    /// least squares on the FRF, no simulation): delay, current loop, extra mode, gravity.
+    pub const fn is_linear(self) -> bool {
+        matches!(
+            self,
+            Effect::TimeDelay | Effect::CurrentLoop | Effect::UnmodelledMode | Effect::Gravity
+        )
+    }
+
     /// The effect of a wire name, if it is one (the candidates, `unexplained` and
     /// `amplitude_dependent_mode`).
     pub fn from_name(name: &str) -> Option<Effect> {

@@ -902,13 +902,28 @@ fn diagnose_from(
         .collect();
     let steps = match first {
         Some(i) => {
-            let (chosen, more) =
-                select::forward(data, nominal.chi2, fits[i].clone(), |d, base, named| {
+            let budget = std::cell::RefCell::new(&mut *steps);
+            let (chosen, more) = select::forward(
+                data,
+                nominal.chi2,
+                fits[i].clone(),
+                |d, base, named| {
+                    let mut steps = budget.borrow_mut();
                     if !steps.go(format!("forward selection step {}", named.len() + 1)) {
                         return Vec::new();
                     }
-                    fit_next(d, base, named, &marginal, opts, n, steps)
-                });
+                    fit_next(d, base, named, &marginal, opts, n, &mut steps)
+                },
+                |base, effect| {
+                    // every candidate but `effect` counts as named: only it is fitted
+                    let others: Vec<Effect> =
+                        Effect::ALL.into_iter().filter(|&e| e != effect).collect();
+                    let mut steps = budget.borrow_mut();
+                    fit_next(data, base, &others, &[effect], opts, n, &mut steps)
+                        .into_iter()
+                        .find(|f| f.effect == effect)
+                },
+            );
             notes.extend(more);
             chosen
         }
@@ -1022,9 +1037,12 @@ fn fit_next(
     steps: &mut Steps,
 ) -> Vec<EffectFit> {
     let step = named.len() + 1;
+    // the linear candidates are always tried (cheap; a large gap of another effect can
+    // keep one from improving on the nominal model alone: C 70300's delay beside
+    // gravity); the amplitude-dependent ones only when they did on their own
     let mut wanted = |e: Effect| {
         !named.contains(&e)
-            && (opts.force_nonlinear || screened.contains(&e))
+            && (opts.force_nonlinear || e.is_linear() || screened.contains(&e))
             && steps.go(format_args!("{e} (forward selection step {step})"))
     };
     let mut fits: Vec<EffectFit> = Vec::new();
@@ -1041,7 +1059,19 @@ fn fit_next(
         let here = effects::finish_linear(data, Effect::None, base.clone(), vec![], 0);
         let freqs = mode_start_freqs(data, &here);
         let starts = effects::mode::starts(&base.chain, &freqs, &[]);
-        fits.extend(effects::mode::fit(data, base, &starts, &opts.budget));
+        // an extra body that is the ground is gravity with a load-ground damper (as in
+        // the first step, [`fit_extra_mode`])
+        fits.extend(
+            effects::mode::fit(data, base, &starts, &opts.budget).map(|f| {
+                match (!base.ground_spring)
+                    .then(|| effects::gravity::from_ground_mode(&f))
+                    .flatten()
+                {
+                    Some(g) => g,
+                    None => f,
+                }
+            }),
+        );
     }
     if wanted(Effect::CoulombFriction) {
         fits.extend(effects::friction::fit(data, base));

@@ -319,7 +319,8 @@ fn correct_chain(
             .max(1e-6 * start.chain.total_inertia() * data.f_min());
         Lin::Viscous
     } else {
-        Lin::None
+        // with the linear extension an earlier step found (backfitting)
+        Lin::carried_by(&start)
     };
     fit_linear(data, &targets, k, &start, 25)
         .map(|r| r.0)
@@ -402,6 +403,9 @@ pub const VALLEY: Valley = Valley {
     inertia_before: 0.15,
     inertia_after: -0.12,
 };
+
+/// Largest ratio between neighbouring points of the search over [`Spring::range`].
+const RANGE_STEP: f64 = 4.0;
 
 /// Start factors of the effect's parameter around the describing-function solution.
 const AROUND: [f64; 4] = [1.0, 1.5, 2.2, 3.2];
@@ -501,8 +505,10 @@ pub fn fit_spring(
             Some(p) => AROUND.iter().map(|f| f * p).collect(),
             None if s_ref[k] > 0.0 => {
                 let (a, b) = (spring.range.0.ln(), spring.range.1.ln());
-                (0..5)
-                    .map(|i| s_ref[k] * (a + (b - a) * i as f64 / 4.0).exp())
+                // neighbouring points at most a factor RANGE_STEP apart
+                let m = ((b - a) / RANGE_STEP.ln()).ceil().max(1.0) as usize;
+                (0..=m)
+                    .map(|i| s_ref[k] * (a + (b - a) * i as f64 / m as f64).exp())
                     .collect()
             }
             None => continue,
@@ -614,7 +620,9 @@ pub const POLISH_STEADY_PERIODS: usize = 2;
 const POLISH_P_STEP: f64 = 0.05;
 
 /// The simplex's result polished by Levenberg-Marquardt on the simulated residuals of the
-/// whole chain and the effect's parameter, with a hybrid Jacobian: the chain's columns from
+/// whole chain (with the linear extension an earlier step of the forward selection found,
+/// [`Lin::carried_by`]: a delay fitted alone has taken up part of a backlash's lag) and the
+/// effect's parameter, with a hybrid Jacobian: the chain's columns from
 /// the *linear* model's FRF (cheap and smooth: forward differences of [`Discrete`]; the
 /// nonlinear model's sensitivity to the chain is close to the linear one's), the effect's
 /// column from one more simulation. Steps are accepted on the simulated cost
@@ -641,7 +649,9 @@ fn polish_spring(
         sim_residuals(data, &m)
     };
     let cost = |r: &[f64]| r.iter().map(|v| v * v).sum::<f64>();
-    let mut t = theta(start, Lin::None);
+    // the chain and the linear extension an earlier step found (refitted with it)
+    let free = Lin::carried_by(start);
+    let mut t = theta(start, free);
     let nt = t.len();
     let mut lp = p.ln();
     let Some(mut r) = sim_res(start, p) else {
@@ -650,7 +660,7 @@ fn polish_spring(
     let mut c0 = cost(&r);
     let mut lambda = 1e-2;
     for _ in 0..POLISH_ITERS {
-        let Some(lin) = build_on(start, &t, n, Lin::None) else {
+        let Some(lin) = build_on(start, &t, n, free) else {
             break;
         };
         let Some(r0l) = lin_res(&lin) else { break };
@@ -661,7 +671,7 @@ fn polish_spring(
             let h = 1e-4;
             let mut tp = t.clone();
             tp[j] += h;
-            match build_on(start, &tp, n, Lin::None).and_then(|l| lin_res(&l)) {
+            match build_on(start, &tp, n, free).and_then(|l| lin_res(&l)) {
                 Some(rp) => {
                     for i in 0..m {
                         jac[(i, j)] = (rp[i] - r0l[i]) / h;
@@ -696,9 +706,7 @@ fn polish_spring(
             };
             let tn: Vec<f64> = t.iter().zip(step.iter()).map(|(a, b)| a + b).collect();
             let lpn = lp + step[nt];
-            if let Some(rn) =
-                build_on(start, &tn, n, Lin::None).and_then(|l| sim_res(&l, lpn.exp()))
-            {
+            if let Some(rn) = build_on(start, &tn, n, free).and_then(|l| sim_res(&l, lpn.exp())) {
                 let cn = cost(&rn);
                 if cn < c0 {
                     t = tn;
@@ -716,7 +724,7 @@ fn polish_spring(
             break;
         }
     }
-    match build_on(start, &t, n, Lin::None) {
+    match build_on(start, &t, n, free) {
         Some(l) => (l, lp.exp(), f64::NAN, c0),
         None => (start.clone(), p, f64::NAN, f64::INFINITY),
     }

@@ -40,8 +40,11 @@ pub fn contact_fraction(gap_rad: f64, defl_rms_rad: f64) -> f64 {
     erfc(gap_rad / (defl_rms_rad * std::f64::consts::SQRT_2))
 }
 
-/// Backlash as the per-level fits see it; the gap searched in 0.02-4x the gear's RMS
-/// deflection at the high level when the describing function gives no start; the polish
+/// Backlash as the per-level fits see it; the gap searched in 0.001-4x the gear's RMS
+/// deflection at the high level when the describing function gives no start (a sine
+/// sweep's deflection away from the resonance is the RMS divided by about the resonance's
+/// peak factor, which reaches hundreds: a gap that small already shows there, while the
+/// Gaussian describing function sees none); the polish
 /// starts again from 1.2x and 1.4x the simplex's gap along the valley (the simplex stops at
 /// 0.6-0.8x the true gap on the cases it misses), paid for by a shorter simplex (30 + 16
 /// evaluations instead of hardening's 40 + 24).
@@ -49,7 +52,7 @@ pub const SPRING: Spring = Spring {
     equivalent: contact_fraction,
     damping_follows: true,
     high_level_chain: true,
-    range: (0.02, 4.0),
+    range: (0.001, 4.0),
     valley_starts: &[1.2, 1.4],
     refine_evals: [30, 16],
 };

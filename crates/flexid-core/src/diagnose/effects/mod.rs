@@ -75,6 +75,21 @@ pub enum Lin {
 }
 
 impl Lin {
+    /// The linear extension `m` carries from an earlier step of the forward selection
+    /// (delay, current loop, gravity), which a later step's fit refits with the chain
+    /// (backfitting: the first effect's parameters, fitted alone, have taken up part of the
+    /// second's signature); `Lin::None` when it carries none. A nominal model's own ground
+    /// spring (`--ground-spring`) is no extension.
+    pub fn carried_by(m: &LinExt) -> Lin {
+        match m.current_loop {
+            _ if m.delay_s > 0.0 => Lin::Delay,
+            Some(l) if l.order == 1 => Lin::Loop1,
+            Some(_) => Lin::Loop2,
+            None if m.ground_k > 0.0 && !m.ground_spring => Lin::Gravity,
+            None => Lin::None,
+        }
+    }
+
     fn extra(self) -> usize {
         match self {
             Lin::None | Lin::Mode => 0,

@@ -900,9 +900,20 @@ fn diagnose_from(
         .filter(|r| r.score > 0.0)
         .map(|r| r.effect)
         .collect();
+    // the extra body found on the nominal chain alone: a start of the mode at later steps
+    let mode_alone = fits
+        .iter()
+        .find(|f| f.effect == Effect::UnmodelledMode)
+        .map(|f| f.lin.chain.clone());
     let steps = match first {
         Some(i) => {
             let budget = std::cell::RefCell::new(&mut *steps);
+            let next = Next {
+                screened: &marginal,
+                mode_alone: mode_alone.as_ref(),
+                opts,
+                n,
+            };
             let (chosen, more) = select::forward(
                 data,
                 nominal.chi2,
@@ -912,16 +923,20 @@ fn diagnose_from(
                     if !steps.go(format!("forward selection step {}", named.len() + 1)) {
                         return Vec::new();
                     }
-                    fit_next(d, base, named, &marginal, opts, n, &mut steps)
+                    next.fit(d, base, named, &mut steps)
                 },
                 |base, effect| {
                     // every candidate but `effect` counts as named: only it is fitted
                     let others: Vec<Effect> =
                         Effect::ALL.into_iter().filter(|&e| e != effect).collect();
                     let mut steps = budget.borrow_mut();
-                    fit_next(data, base, &others, &[effect], opts, n, &mut steps)
-                        .into_iter()
-                        .find(|f| f.effect == effect)
+                    Next {
+                        screened: &[effect],
+                        ..next
+                    }
+                    .fit(data, base, &others, &mut steps)
+                    .into_iter()
+                    .find(|f| f.effect == effect)
                 },
             );
             notes.extend(more);
@@ -1023,70 +1038,100 @@ fn amplitude_mode_of(
     }
 }
 
-/// The candidates for the next step of the forward selection on `data` (the measurement,
-/// with amplitude-dependent effects found before divided out), on top of `base` (the chain
-/// and linear extensions found so far): those in `screened` (all with `--all-effects`)
-/// but not `named`.
-fn fit_next(
-    data: &Data,
-    base: &LinExt,
-    named: &[Effect],
-    screened: &[Effect],
-    opts: &DiagnoseOptions,
+/// What the later steps of the forward selection fit their candidates with.
+#[derive(Clone, Copy)]
+struct Next<'a> {
+    /// The amplitude-dependent candidates tried (those significant alone; all with
+    /// `--all-effects`).
+    screened: &'a [Effect],
+    /// The chain with the extra body found on the nominal chain alone: its body is one
+    /// more start of the mode's fit on top of other effects (besides the starts from the
+    /// bands of the gap that remains).
+    mode_alone: Option<&'a crate::model::Chain>,
+    opts: &'a DiagnoseOptions,
     n: usize,
-    steps: &mut Steps,
-) -> Vec<EffectFit> {
-    let step = named.len() + 1;
-    // the linear candidates are always tried (cheap; a large gap of another effect can
-    // keep one from improving on the nominal model alone: C 70300's delay beside
-    // gravity); the amplitude-dependent ones only when they did on their own
-    let mut wanted = |e: Effect| {
-        !named.contains(&e)
-            && (opts.force_nonlinear || e.is_linear() || screened.contains(&e))
-            && steps.go(format_args!("{e} (forward selection step {step})"))
-    };
-    let mut fits: Vec<EffectFit> = Vec::new();
-    if wanted(Effect::TimeDelay) {
-        fits.extend(effects::delay::fit(data, base));
-    }
-    if wanted(Effect::CurrentLoop) {
-        fits.extend(effects::current_loop::fit(data, base));
-    }
-    if wanted(Effect::Gravity) && !base.ground_spring {
-        fits.extend(effects::gravity::fit(data, base, &[]));
-    }
-    if wanted(Effect::UnmodelledMode) {
-        let here = effects::finish_linear(data, Effect::None, base.clone(), vec![], 0);
-        let freqs = mode_start_freqs(data, &here);
-        let starts = effects::mode::starts(&base.chain, &freqs, &[]);
-        // an extra body that is the ground is gravity with a load-ground damper (as in
-        // the first step, [`fit_extra_mode`])
-        fits.extend(
-            effects::mode::fit(data, base, &starts, &opts.budget).map(|f| {
-                match (!base.ground_spring)
-                    .then(|| effects::gravity::from_ground_mode(&f))
-                    .flatten()
-                {
-                    Some(g) => g,
-                    None => f,
-                }
-            }),
-        );
-    }
-    if wanted(Effect::CoulombFriction) {
-        fits.extend(effects::friction::fit(data, base));
-    }
-    if base.chain.masses() == n {
-        // the spring effects act on the nominal couplings
-        if wanted(Effect::Backlash) {
-            fits.extend(effects::backlash::fit(data, base));
+}
+
+impl Next<'_> {
+    /// The candidates for the next step of the forward selection on `data` (the measurement,
+    /// with amplitude-dependent effects found before divided out), on top of `base` (the chain
+    /// and linear extensions found so far): the linear ones and those in `screened` (all with
+    /// `--all-effects`), but not `named`.
+    fn fit(
+        &self,
+        data: &Data,
+        base: &LinExt,
+        named: &[Effect],
+        steps: &mut Steps,
+    ) -> Vec<EffectFit> {
+        let Next {
+            screened, opts, n, ..
+        } = *self;
+        let step = named.len() + 1;
+        // the linear candidates are always tried (cheap; a large gap of another effect can
+        // keep one from improving on the nominal model alone: C 70300's delay beside
+        // gravity); the amplitude-dependent ones only when they did on their own
+        let mut wanted = |e: Effect| {
+            !named.contains(&e)
+                && (opts.force_nonlinear || e.is_linear() || screened.contains(&e))
+                && steps.go(format_args!("{e} (forward selection step {step})"))
+        };
+        let mut fits: Vec<EffectFit> = Vec::new();
+        if wanted(Effect::TimeDelay) {
+            fits.extend(effects::delay::fit(data, base));
         }
-        if wanted(Effect::HardeningStiffness) {
-            fits.extend(effects::hardening::fit(data, base));
+        if wanted(Effect::CurrentLoop) {
+            fits.extend(effects::current_loop::fit(data, base));
         }
+        if wanted(Effect::Gravity) && !base.ground_spring {
+            fits.extend(effects::gravity::fit(data, base, &[]));
+        }
+        if wanted(Effect::UnmodelledMode) {
+            let here = effects::finish_linear(data, Effect::None, base.clone(), vec![], 0);
+            let freqs = mode_start_freqs(data, &here);
+            let alone: Vec<crate::model::Chain> = self
+                .mode_alone
+                .filter(|c| c.masses() == base.chain.masses() + 1)
+                .map(|c| {
+                    let mut ch = base.chain.clone();
+                    ch.inertia_kgm2.extend(c.inertia_kgm2.last());
+                    ch.stiffness_nm_per_rad
+                        .extend(c.stiffness_nm_per_rad.last());
+                    ch.damping_nms_per_rad.extend(c.damping_nms_per_rad.last());
+                    ch
+                })
+                .into_iter()
+                .collect();
+            let starts = effects::mode::starts(&base.chain, &freqs, &alone);
+            // an extra body that is the ground is gravity with a load-ground damper (as in
+            // the first step, [`fit_extra_mode`])
+            fits.extend(
+                effects::mode::fit(data, base, &starts, &opts.budget).map(|f| {
+                    match (!base.ground_spring)
+                        .then(|| effects::gravity::from_ground_mode(&f))
+                        .flatten()
+                    {
+                        Some(g) => g,
+                        None => f,
+                    }
+                }),
+            );
+        }
+        if wanted(Effect::CoulombFriction) {
+            fits.extend(effects::friction::fit(data, base));
+        }
+        if base.chain.masses() == n {
+            // the spring effects act on the nominal couplings
+            if wanted(Effect::Backlash) {
+                fits.extend(effects::backlash::fit(data, base));
+            }
+            if wanted(Effect::HardeningStiffness) {
+                fits.extend(effects::hardening::fit(data, base));
+            }
+        }
+        drop_contradicted_by_reading(data, &mut fits, &mut Vec::new());
+        fits
     }
-    drop_contradicted_by_reading(data, &mut fits, &mut Vec::new());
-    fits
 }
 
 /// Drop the candidates the drive's torque reading contradicts, if there is one

@@ -1011,8 +1011,24 @@ mod tests {
 
     /// A stepped-sine recording of a 2-mass chain with a zero position column, and the
     /// chain (motor viscous friction: the rigid body settles within a block).
-    fn stepped_case() -> (Recording, LinExt) {
-        stepped_recording(4, 2)
+    /// The stepped case of the tests below, and its gear's RMS deflection without effect
+    /// [rad] (the scale of the spring effects' parameters).
+    fn stepped_case() -> (Recording, LinExt, f64) {
+        let (rec, lin) = stepped_recording(4, 2);
+        let x = simulate(&lin, Nl::None, &rec.torque_cmd_nm, rec.sample_rate_hz, 1).defl_rms[0];
+        (rec, lin, x)
+    }
+
+    /// Every effect the simulation carries, at sizes that act on [`stepped_case`] (`x`:
+    /// its RMS deflection).
+    fn every_effect(x: f64) -> [Nl; 5] {
+        [
+            Nl::None,
+            Nl::Friction { tc: 0.1 },
+            Nl::Backlash { k: 0, g: 0.5 * x },
+            Nl::Hardening { k: 0, xref: x },
+            Nl::GroundCubic { k3: 1e3 },
+        ]
     }
 
     /// A stepped sine at 3 .. 243 Hz (1 kHz; `periods` measured and `settle` settle
@@ -1074,9 +1090,8 @@ mod tests {
     /// 2 bodies leaves the bounds: NaN in both).
     #[test]
     fn wide_integration_equals_the_plain_one() {
-        let (rec, lin) = stepped_case();
+        let (rec, _, x) = stepped_case();
         let (fs, u) = (rec.sample_rate_hz, &rec.torque_cmd_nm);
-        let x = simulate(&lin, Nl::None, u, fs, 1).defl_rms[0];
         let short = &u[..u.len() / 3];
         for n in 1..=5 {
             let chain = Chain::new(
@@ -1087,13 +1102,7 @@ mod tests {
             .unwrap();
             let mut lin = LinExt::nominal(chain);
             lin.motor_b = 0.05;
-            for nl in [
-                Nl::None,
-                Nl::Friction { tc: 0.1 },
-                Nl::Backlash { k: 0, g: 0.5 * x },
-                Nl::Hardening { k: 0, xref: x },
-                Nl::GroundCubic { k3: 1e3 },
-            ] {
+            for nl in every_effect(x) {
                 let plain = lanes_on(false, &lin, nl, &[u, short], fs);
                 let wide = lanes_on(true, &lin, nl, &[u, short], fs);
                 for (p, w) in plain.iter().zip(&wide) {
@@ -1152,18 +1161,11 @@ mod tests {
     /// hardening far beyond the step) stops alone with a NaN output.
     #[test]
     fn lanes_equal_single_simulations() {
-        let (rec, lin) = stepped_case();
+        let (rec, lin, x) = stepped_case();
         let (fs, u) = (rec.sample_rate_hz, &rec.torque_cmd_nm);
-        let x = simulate(&lin, Nl::None, u, fs, 1).defl_rms[0];
         let big: Vec<f64> = u.iter().map(|t| 1e4 * t).collect();
         let short = &u[..u.len() / 3];
-        for nl in [
-            Nl::None,
-            Nl::Friction { tc: 0.1 },
-            Nl::Backlash { k: 0, g: 0.5 * x },
-            Nl::Hardening { k: 0, xref: x },
-            Nl::GroundCubic { k3: 1e3 },
-        ] {
+        for nl in every_effect(x) {
             let us: [&[f64]; 3] = [u, short, &big];
             let lanes = simulate_lanes(&lin, nl, &us, fs, 3);
             for (lane, u) in lanes.iter().zip(us) {
@@ -1184,9 +1186,8 @@ mod tests {
     /// leaves the other empty; a blown-up lane is NaN in the recorded motion only.
     #[test]
     fn recording_one_motion_into_kept_buffers_equals_fresh_lanes() {
-        let (rec, lin) = stepped_case();
+        let (rec, lin, x) = stepped_case();
         let (fs, u) = (rec.sample_rate_hz, &rec.torque_cmd_nm);
-        let x = simulate(&lin, Nl::None, u, fs, 1).defl_rms[0];
         let short = &u[..u.len() / 3];
         let mut kept = Vec::new();
         for nl in [
@@ -1223,7 +1224,7 @@ mod tests {
     /// one, by position and by velocity.
     #[test]
     fn sim_frf_equals_the_estimate_of_a_copied_recording() {
-        let (rec, lin) = stepped_case();
+        let (rec, lin, _) = stepped_case();
         let short = shortened_stepped(&rec, 1).unwrap();
         for rec in [rec, short] {
             let out = simulate(

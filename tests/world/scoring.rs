@@ -159,12 +159,22 @@ pub fn coverage(bands: &[[f64; 2]], band_hz: [f64; 2]) -> f64 {
     }
 }
 
+/// A visibility as a case line shows it: one decimal, or `chaos` where the effect's
+/// response at every size tried was not periodic ([`f64::MAX`], too large to measure).
+fn visibility_text(v: f64) -> String {
+    if v >= f64::MAX {
+        "chaos".into()
+    } else {
+        format!("{v:.1}")
+    }
+}
+
 /// One line per case.
 pub fn case_line(o: &Outcome) -> String {
     let t = &o.truth;
     let m = &t.measurement;
     let mut s = format!(
-        "{} {:36} seed {:6} {}m {:.0}kHz {:12} x{:.0} {:2}b vis {:5.1}: {:12}",
+        "{} {:36} seed {:6} {}m {:.0}kHz {:12} x{:.0} {:2}b vis {:>5}: {:12}",
         t.group.name(),
         t.class,
         t.seed,
@@ -173,7 +183,7 @@ pub fn case_line(o: &Outcome) -> String {
         m.excitation.kind.name(),
         m.noise_factor,
         m.encoder_bits,
-        t.visibility,
+        visibility_text(t.visibility),
         o.verdict
     );
     if o.effects.len() > 1 {

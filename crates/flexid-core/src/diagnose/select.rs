@@ -124,34 +124,8 @@ pub fn forward(
             .collect();
         if let [only] = named[..] {
             if !only.is_linear() {
-                let mut linear: Vec<usize> = (0..scored.len())
-                    .filter(|&i| scored[i].1.effect.is_linear() && scored[i].0 > 0.0)
-                    .collect();
-                linear.sort_by(|&a, &b| scored[b].0.total_cmp(&scored[a].0));
-                for &i in linear.iter().take(BACKFITTED) {
-                    let Some(b) =
-                        backfit(&scored[i].1.lin, only).filter(|b| b.chi2 < scored[i].1.chi2)
-                    else {
-                        continue;
-                    };
-                    let f = &mut scored[i].1;
-                    notes.push(format!(
-                        "forward selection, step {}: {only} refitted with {} (backfitting): chi2 {:.4e} -> {:.4e}; {}",
-                        steps.len() + 1,
-                        f.effect,
-                        f.chi2,
-                        b.chi2,
-                        b.params
-                            .iter()
-                            .map(|p| format!("{} = {:.4e}", p.name, p.value))
-                            .collect::<Vec<_>>()
-                            .join(", ")
-                    ));
-                    f.chi2 = b.chi2;
-                    f.model = b.model;
-                    f.lin = b.lin;
-                    scored[i].0 = score_of(&scored[i].1);
-                }
+                let step = steps.len() + 1;
+                backfit_linear(&mut scored, only, step, &score_of, &mut backfit, &mut notes);
             }
         }
         let tried: Vec<String> = scored
@@ -174,18 +148,16 @@ pub fn forward(
         ));
         // the best of the significant ones (a better-scoring candidate whose own parameter
         // is not significant does not hide one that is); else the best, to report
-        let significant_fit = |(score, fit): &(f64, EffectFit)| {
-            *score > 0.0 && super::rank::defining_parameter_significant(fit)
+        let significant_fit = |score: f64, fit: &EffectFit| {
+            score > 0.0 && super::rank::defining_parameter_significant(fit)
         };
-        let best = match scored.iter().any(significant_fit) {
-            true => scored
-                .into_iter()
-                .filter(significant_fit)
-                .max_by(|a, b| a.0.total_cmp(&b.0)),
-            false => scored.into_iter().max_by(|a, b| a.0.total_cmp(&b.0)),
-        };
+        let any_significant = scored.iter().any(|(s, f)| significant_fit(*s, f));
+        let best = scored
+            .into_iter()
+            .filter(|(s, f)| !any_significant || significant_fit(*s, f))
+            .max_by(|a, b| a.0.total_cmp(&b.0));
         let Some((score, fit)) = best else { break };
-        let significant = significant_fit(&(score, fit.clone()));
+        let significant = significant_fit(score, &fit);
         let explains = super::rank::explained_fraction(data, last.chi2, fit.chi2);
         let added = significant && explains > super::rank::EXPLAINS;
         notes.push(format!(
@@ -212,6 +184,45 @@ pub fn forward(
         });
     }
     (steps, notes)
+}
+
+/// Backfitting at step `step` (see [`forward`]): the first effect `first` (amplitude-dependent)
+/// refitted on top of each of the [`BACKFITTED`] best-scoring linear candidates of
+/// `scored`; a candidate whose pair fits better takes the refit's model, chain and score.
+fn backfit_linear(
+    scored: &mut [(f64, EffectFit)],
+    first: Effect,
+    step: usize,
+    score_of: &impl Fn(&EffectFit) -> f64,
+    backfit: &mut impl FnMut(&LinExt, Effect) -> Option<EffectFit>,
+    notes: &mut Vec<String>,
+) {
+    let mut linear: Vec<usize> = (0..scored.len())
+        .filter(|&i| scored[i].1.effect.is_linear() && scored[i].0 > 0.0)
+        .collect();
+    linear.sort_by(|&a, &b| scored[b].0.total_cmp(&scored[a].0));
+    for &i in linear.iter().take(BACKFITTED) {
+        let (score, f) = &mut scored[i];
+        let Some(b) = backfit(&f.lin, first).filter(|b| b.chi2 < f.chi2) else {
+            continue;
+        };
+        let params: Vec<String> = b
+            .params
+            .iter()
+            .map(|p| format!("{} = {:.4e}", p.name, p.value))
+            .collect();
+        notes.push(format!(
+            "forward selection, step {step}: {first} refitted with {} (backfitting): chi2 {:.4e} -> {:.4e}; {}",
+            f.effect,
+            f.chi2,
+            b.chi2,
+            params.join(", ")
+        ));
+        f.chi2 = b.chi2;
+        f.model = b.model;
+        f.lin = b.lin;
+        *score = score_of(f);
+    }
 }
 
 #[cfg(test)]

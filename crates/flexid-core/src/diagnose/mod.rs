@@ -611,7 +611,11 @@ impl StageClock {
 
 /// The identification behind a nominal start: `masses` bodies in `band`, 8 starts on one
 /// thread (the diagnosis runs on one core), under the diagnosis's time cap.
-fn nominal_analysis(masses: usize, band: Option<[f64; 2]>, budget: &FitBudget) -> AnalysisOptions {
+pub(crate) fn nominal_analysis(
+    masses: usize,
+    band: Option<[f64; 2]>,
+    budget: &FitBudget,
+) -> AnalysisOptions {
     AnalysisOptions {
         masses: Some(masses),
         band_hz: band,
@@ -1168,7 +1172,7 @@ fn mode_start_freqs(data: &Data, model: &EffectFit) -> Vec<f64> {
 }
 
 /// The level with the highest torque RMS.
-fn top_level(data: &Data) -> usize {
+pub(crate) fn top_level(data: &Data) -> usize {
     (0..data.levels.len())
         .max_by(|&a, &b| {
             data.levels[a]
@@ -1362,7 +1366,11 @@ fn fit_linear_candidates(
     idents: &[crate::model::Chain],
     c: &mut Candidates,
 ) {
-    c.fit(Effect::TimeDelay, || effects::delay::fit(data, nom_lin));
+    let budget = c.steps.budget.clone();
+    c.fit(Effect::TimeDelay, || {
+        let more = effects::delay::reidentified(data, nom_lin, &budget);
+        effects::delay::fit_from(data, nom_lin, &more)
+    });
     c.fit(Effect::CurrentLoop, || {
         effects::current_loop::fit(data, nom_lin)
     });

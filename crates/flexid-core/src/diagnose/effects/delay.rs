@@ -3,11 +3,19 @@
 //! the nominal model, so a plant without delay gives zero.
 
 use super::{finish_linear, fit_best_start, EffectFit, Lin, Param};
+use crate::analysis::analyze_estimate;
 use crate::diagnose::lti::LinExt;
 use crate::diagnose::Data;
 use crate::diagnose::Effect;
+use crate::recording::{Recording, Sidecar};
 
 pub fn fit(data: &Data, nominal: &LinExt) -> Option<EffectFit> {
+    fit_from(data, nominal, &[])
+}
+
+/// [`fit`] with more starts: chains identified with whole samples of delay already taken
+/// out ([`reidentified`]).
+pub fn fit_from(data: &Data, nominal: &LinExt, more: &[LinExt]) -> Option<EffectFit> {
     let ts = 1.0 / data.fs;
     // a grid of a quarter sample up to 4 samples: the phase wraps, so LM alone can lock
     // onto a wrong branch; where the drive's torque reading shows the delay's whole
@@ -28,8 +36,9 @@ pub fn fit(data: &Data, nominal: &LinExt) -> Option<EffectFit> {
             s.delay_s = x * ts;
             s
         })
+        .chain(more.iter().cloned())
         .collect();
-    let (m, r) = fit_best_start(data, Lin::Delay, &starts, 40, 2)?;
+    let (m, r) = fit_best_start(data, Lin::Delay, &starts, 40, 2 + more.len())?;
     let np = r.x.len();
     // the parameter is the delay in ms
     let std = r.cov[np * np - 1].max(0.0).sqrt() * 1e-3;
@@ -39,4 +48,72 @@ pub fn fit(data: &Data, nominal: &LinExt) -> Option<EffectFit> {
         std,
     }];
     Some(finish_linear(data, Effect::TimeDelay, m, p, 1))
+}
+
+/// Starts of the delay's fit that the nominal chain cannot give: the chain identified
+/// again on the highest level's measurement, told of `m` more whole samples of delay (the
+/// reading's where it is the delayed command,
+/// [`crate::diagnose::torque_path::TorquePath::whole_samples_beyond`]; one and two without
+/// a reading), with that delay and the ground damper that identification saw.
+///
+/// The nominal fit, having no delay, bends its chain to mimic the delay's phase; on few
+/// lines (a stepped sine's 40 spots with a resonance between two of them: A 50501) the
+/// joint fit started from that bent chain stays in its basin, while the identification
+/// with the delay known finds the true chain (checked on that case: J, c within 1 %).
+pub fn reidentified(
+    data: &Data,
+    nominal: &LinExt,
+    budget: &crate::identify::fit::FitBudget,
+) -> Vec<LinExt> {
+    if nominal.ground_spring
+        || nominal.current_loop.is_some()
+        || nominal.ground_k > 0.0
+        || nominal.delay_s > 0.0
+    {
+        return Vec::new();
+    }
+    let level = &data.levels[crate::diagnose::top_level(data)];
+    // a reading that is the command delayed gives the whole samples; one that shows
+    // something else between command and torque (a loop, a filter) says the lag is no pure
+    // delay: no start then
+    let whole: Vec<u32> = match &data.torque {
+        None => vec![1, 2],
+        Some(t) => t
+            .whole_samples_beyond(level.io_delay)
+            .filter(|&m| m > 0)
+            .into_iter()
+            .collect(),
+    };
+    let Ok(measured) = level.measured(data.band) else {
+        return Vec::new();
+    };
+    let opts = crate::diagnose::nominal_analysis(nominal.chain.masses(), data.band, budget);
+    whole
+        .into_iter()
+        .filter_map(|m| {
+            // the identification reads the sample rate and the delay from the recording
+            // only: one without samples
+            let told = Recording {
+                sample_rate_hz: level.rec.sample_rate_hz,
+                sidecar: Sidecar {
+                    io_delay_samples: Some(level.io_delay + m),
+                    ..level.rec.sidecar.clone()
+                },
+                ..Recording::default()
+            };
+            let a = analyze_estimate(&told, measured.clone(), &opts).ok()?;
+            // the damper on the lowest lines, seen through the delay (Re of the inverse
+            // mobility is `b - w^2 J tau` at small `w tau`): the nominal model's is biased
+            let motor_b = match &a.ground_damper {
+                Some(g) if nominal.motor_b > 0.0 => g.damping.b_nms_per_rad,
+                _ => nominal.motor_b,
+            };
+            Some(LinExt {
+                chain: a.fit?.chain,
+                motor_b,
+                delay_s: m as f64 / data.fs,
+                ..nominal.clone()
+            })
+        })
+        .collect()
 }

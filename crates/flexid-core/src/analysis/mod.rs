@@ -12,6 +12,8 @@ mod time_cap;
 
 #[cfg(test)]
 mod tests_ground_damper;
+#[cfg(test)]
+mod tests_sparse_lines;
 
 pub use estimate::{
     estimate_frf, estimate_motion, estimate_torque_path, periodic_excitation, EstimatedFrf,

@@ -1,7 +1,9 @@
 use super::estimate::{estimate_frf, mobility_equivalent, EstimatedFrf};
 use super::summary::ModelSummary;
 use crate::frf::{supported_band, Frf, FrfError, FrfKind};
-use crate::identify::detect::{detect_pairs, ArRPair, DetectOptions, Detection};
+use crate::identify::detect::{
+    detect_pairs, ArRPair, DetectOptions, Detection, ExtremumKind, RejectedCandidate,
+};
 use crate::identify::error::IdentifyError;
 use crate::identify::exact::{chain_from_spectra, with_coupling_damping};
 use crate::identify::fit::{
@@ -512,29 +514,88 @@ fn fit_given_order(
         Some(init)
     } else {
         let spectra = &pairs.spectra[..];
-        analysis.notes.push(format!(
-            "{m} bodies asked for but only {} anti-resonance/resonance pairs were detected: the missing pairs start near the top of the band",
-            spectra.len()
-        ));
         let top = analysis
             .fitted_frf()
             .freq_hz
             .last()
             .copied()
             .unwrap_or(analysis.sample_rate_hz / 4.0);
-        let mut sel = spectra.to_vec();
-        let mut f = top * 0.5;
-        while sel.len() < k {
-            sel.push((f, f * 1.3));
-            f *= 1.5;
+        let near_top = |mut sel: Vec<(f64, f64)>| {
+            let mut f = top * 0.5;
+            while sel.len() < k {
+                sel.push((f, f * 1.3));
+                f *= 1.5;
+            }
+            sel
+        };
+        let rejected = rejected_pairs(&analysis.detection, spectra);
+        let with_rejected = (!rejected.is_empty()).then(|| {
+            let mut sel = spectra.to_vec();
+            sel.extend(rejected.iter().take(k - spectra.len()));
+            sel.sort_by(|a, b| a.0.total_cmp(&b.0));
+            near_top(sel)
+        });
+        analysis.notes.push(format!(
+            "{m} bodies asked for but only {} anti-resonance/resonance pairs were detected: the missing pairs start near the top of the band{}",
+            spectra.len(),
+            if with_rejected.is_some() {
+                ", and from the notch-peak pairs short of the significance threshold (the better fit kept)"
+            } else {
+                ""
+            }
+        ));
+        let inits: Vec<Chain> = std::iter::once(near_top(spectra.to_vec()))
+            .chain(with_rejected)
+            .filter_map(|sel| exact_chain(j, &sel))
+            .collect();
+        // each start fitted, the lowest cost kept (the error of the last when none fits)
+        let mut best: Option<Result<ChainFit, IdentifyError>> = None;
+        for init in &inits {
+            opts.fit.budget.begin_fit(m, opts.fit.starts);
+            let f = fit_chain(analysis.fitted_frf(), init, fit_opts);
+            best = match (best, f) {
+                (Some(Ok(b)), Ok(f)) if b.cost <= f.cost => Some(Ok(b)),
+                (Some(Ok(b)), Err(_)) => Some(Ok(b)),
+                (_, f) => Some(f),
+            };
         }
-        exact_chain(j, &sel)
+        return match best {
+            Some(r) => Ok(r?),
+            None => Err(IdentifyError::InvalidArgument(
+                "no initial chain could be formed from the detected pairs".into(),
+            )
+            .into()),
+        };
     };
     let init = init.ok_or(IdentifyError::InvalidArgument(
         "no initial chain could be formed from the detected pairs".into(),
     ))?;
     opts.fit.budget.begin_fit(m, opts.fit.starts);
     Ok(fit_chain(analysis.fitted_frf(), &init, fit_opts)?)
+}
+
+/// Notch-peak pairs among the rejected candidates (a rejected notch and the nearest
+/// rejected peak above it, with no candidate between them), disjoint from the pairs in
+/// `taken`, the most significant first (the weaker of the two's sigma): starts for the
+/// pairs a requested order needs beyond the detected ones (stepped sines' sparse spots put
+/// a true pair just short of the threshold: a notch and a peak at 4.6 sigma).
+fn rejected_pairs(det: &Detection, taken: &[(f64, f64)]) -> Vec<(f64, f64)> {
+    let mut r: Vec<&RejectedCandidate> = det.rejected.iter().collect();
+    r.sort_by(|a, b| a.freq_hz.total_cmp(&b.freq_hz));
+    let mut out: Vec<(f64, f64, f64)> = r
+        .windows(2)
+        .filter(|w| w[0].kind == ExtremumKind::Notch && w[1].kind == ExtremumKind::Peak)
+        .map(|w| {
+            (
+                w[0].freq_hz,
+                w[1].freq_hz,
+                w[0].prominence_sigma.min(w[1].prominence_sigma),
+            )
+        })
+        .filter(|&(ar, r, _)| taken.iter().all(|&(a, b)| r < a || ar > b))
+        .collect();
+    out.sort_by(|a, b| b.2.total_cmp(&a.2));
+    out.into_iter().map(|(a, r, _)| (a, r)).collect()
 }
 
 /// No `--masses`: the orders with all pairs and with the one or two least prominent

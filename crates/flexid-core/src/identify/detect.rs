@@ -956,4 +956,53 @@ mod tests {
         assert_eq!(det.pairs.len(), 2, "{det:?}");
         assert!(det.pairs[1].r_above_band, "{:?}", det.pairs[1]);
     }
+
+    /// A pair seen on 40 log-spaced spots (a stepped sine's): the lines sample a phase rise
+    /// short of 120 deg, and the notch line is noisy (the motor barely moves there), so
+    /// the notch is below 5 sigma but taken by the interlacing rule. With the peak
+    /// significant the pair is unconfirmed (offered to the fit), not only rejected.
+    #[test]
+    fn a_weak_notch_with_a_short_rise_before_a_significant_peak_is_unconfirmed() {
+        // AR 159 Hz, R 225 Hz, damped enough that the spots see a rise of 114 deg
+        let ch = crate::model::Chain::new(vec![1e-3, 1e-3], vec![1000.0], vec![0.1]).unwrap();
+        let fs = 4000.0;
+        let sc = crate::model::SampledChain::new(&ch, fs, 0).unwrap();
+        let freq_hz: Vec<f64> = (0..40).map(|i| 1600f64.powf(i as f64 / 39.0)).collect();
+        let h: Vec<Complex64> = freq_hz.iter().map(|&f| sc.frf(f)).collect();
+        // the notch line: the deepest below the resonance
+        let notch = (1..39)
+            .filter(|&i| freq_hz[i] < 225.0)
+            .min_by(|&a, &b| h[a].norm().total_cmp(&h[b].norm()))
+            .unwrap();
+        // 100 % scatter at the notch line: about 4 sigma, 1 % elsewhere
+        let rel_notch = 1.0;
+        let var: Vec<f64> = h
+            .iter()
+            .enumerate()
+            .map(|(i, x)| ((if i == notch { rel_notch } else { 0.01 }) * x.norm()).powi(2))
+            .collect();
+        let frf = Frf {
+            freq_hz,
+            h,
+            var,
+            coherence: None,
+            kind: FrfKind::DifferencedVelocity,
+            sample_rate_hz: fs,
+        };
+        let det = detect_pairs(&frf, &DetectOptions::default()).unwrap();
+        assert!(det.pairs.is_empty(), "{:?}", det.pairs);
+        let short = |r: &&RejectedCandidate| r.reason.starts_with("phase rises only");
+        let notch = det
+            .rejected
+            .iter()
+            .find(short)
+            .expect("the short rise is named");
+        assert!(notch.prominence_sigma < 5.0, "{notch:?}");
+        assert_eq!(det.unconfirmed.len(), 1, "{:?}", det.rejected);
+        let p = &det.unconfirmed[0];
+        assert!(
+            (p.ar_hz / 159.2 - 1.0).abs() < 0.1 && (p.r_hz / 225.1 - 1.0).abs() < 0.1,
+            "{p:?}"
+        );
+    }
 }

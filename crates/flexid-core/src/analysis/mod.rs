@@ -14,6 +14,8 @@ mod time_cap;
 mod tests_ground_damper;
 #[cfg(test)]
 mod tests_sparse_lines;
+#[cfg(test)]
+mod tests_support;
 
 pub use estimate::{
     estimate_frf, estimate_motion, estimate_torque_path, periodic_excitation, EstimatedFrf,

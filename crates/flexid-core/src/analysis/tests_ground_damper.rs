@@ -3,11 +3,12 @@
 //! simulated by the fine-step plant (not the fit's sampled model), the sweep starting
 //! from rest, a disturbance torque and a 20-bit encoder.
 
+use super::tests_support::simulated;
 use super::{analyze, AnalysisOptions};
 use crate::excitation::ChirpDesign;
 use crate::model::Chain;
-use crate::plant::{Friction, PlantSim, PlantSpec};
-use crate::recording::{Recording, Sidecar};
+use crate::plant::{Friction, PlantSpec};
+use crate::recording::Recording;
 
 /// The 4-body chain of a world case that a free-chain fit turned into a 65 kg m^2 body on
 /// a 0.05 N m/rad spring (its damper standing in for the ground's).
@@ -33,28 +34,7 @@ fn sweep_recording(chain: &Chain, b: f64) -> Recording {
     });
     spec.effects.torque_noise_nm = 2e-3;
     spec.effects.encoder_counts_per_rev = Some(1 << 20);
-    let mut sim = PlantSim::new(&spec, fs, 8, 7).unwrap();
-    let (mut time_s, mut position) = (Vec::new(), Vec::new());
-    for &t in &chirp.signal {
-        let s = sim.sample();
-        time_s.push(s.time_s);
-        position.push(s.position_rad);
-        sim.step(t);
-    }
-    Recording {
-        time_s,
-        torque_cmd_nm: chirp.signal.clone(),
-        position_rad: Some(position),
-        velocity_rad_s: None,
-        acceleration_rad_s2: None,
-        torque_actual_nm: None,
-        sample_rate_hz: fs,
-        sidecar: Sidecar {
-            sample_rate_hz: Some(fs),
-            excitation: Some(chirp.info()),
-            ..Sidecar::default()
-        },
-    }
+    simulated(&spec, &chirp.signal, chirp.info(), fs, 8, 7)
 }
 
 fn rel(a: f64, b: f64) -> f64 {

@@ -6,11 +6,12 @@
 //! Simulated by the fine-step plant (not the fit's sampled model) with an encoder and
 //! torque noise.
 
+use super::tests_support::simulated;
 use super::{analyze, AnalysisOptions};
 use crate::excitation::SteppedSineDesign;
 use crate::model::Chain;
-use crate::plant::{PlantSim, PlantSpec};
-use crate::recording::{Recording, Sidecar};
+use crate::plant::PlantSpec;
+use crate::recording::Recording;
 
 /// The 5-body chain of that case (its 4-body nominal chain and the extra mode).
 fn chain5() -> Chain {
@@ -40,28 +41,7 @@ fn stepped_recording(mut spec: PlantSpec, lo: f64, rms: f64, bits: u32) -> Recor
     };
     let s = design.generate().unwrap();
     spec.effects.encoder_counts_per_rev = Some(1 << bits);
-    let mut sim = PlantSim::new(&spec, fs, 4, 11).unwrap();
-    let (mut time_s, mut position) = (Vec::new(), Vec::new());
-    for &t in &s.signal {
-        let a = sim.sample();
-        time_s.push(a.time_s);
-        position.push(a.position_rad);
-        sim.step(t);
-    }
-    Recording {
-        time_s,
-        torque_cmd_nm: s.signal.clone(),
-        position_rad: Some(position),
-        velocity_rad_s: None,
-        acceleration_rad_s2: None,
-        torque_actual_nm: None,
-        sample_rate_hz: fs,
-        sidecar: Sidecar {
-            sample_rate_hz: Some(fs),
-            excitation: Some(s.info()),
-            ..Sidecar::default()
-        },
-    }
+    simulated(&spec, &s.signal, s.info(), fs, 4, 11)
 }
 
 fn rel(a: f64, b: f64) -> f64 {

@@ -50,7 +50,7 @@ fn rel(a: f64, b: f64) -> f64 {
 
 /// Five bodies asked for: every inertia and stiffness within 5 % of the plant's, although
 /// the detection confirms fewer than four pairs. (Started near the top of the band only,
-/// the fit ended with J2 at 5 % of the plant's and a reduced chi² of 30.)
+/// the fit ended with J2 at 45 % of the plant's.)
 #[test]
 fn a_pair_short_of_the_threshold_starts_the_missing_pair_of_a_requested_order() {
     let chain = chain5();

@@ -140,10 +140,12 @@ mod tests {
         }
     }
 
-    /// The identification told of the delay's whole sample finds the chain (within 1 %)
-    /// that a nominal model bent to mimic the delay (J swapped, stiffness 30 % high, as the
-    /// case's nominal fit ended) does not lead to; the delay fitted from it is the sample
-    /// and leaves only noise.
+    /// Given a nominal model bent to mimic the delay (J swapped, stiffness 30 % high, as
+    /// the case's nominal fit ended), the identification told of the delay's whole sample
+    /// finds the plant's chain within 1 %, and the delay fitted with these starts is the
+    /// sample and leaves only noise. (On these exact lines, 1 % each, the fit from the bent
+    /// chain alone gets there too; on the case's stepped sine, whose lowest lines are a
+    /// few 1e-6, it did not: the benchmark's A 50501.)
     #[test]
     fn the_chain_identified_with_the_delay_taken_out_starts_the_delay() {
         let truth = delayed();
@@ -171,14 +173,10 @@ mod tests {
         ));
         level.rec.sample_rate_hz = data.fs;
         let bent = LinExt {
-            delay_s: 0.0,
+            motor_b: 1.704e-3,
             ..LinExt::nominal(
                 Chain::new(vec![3.436e-4, 5.309e-4], vec![907.0], vec![1e-5]).unwrap(),
             )
-        };
-        let bent = LinExt {
-            motor_b: 1.704e-3,
-            ..bent
         };
         let budget = crate::identify::fit::FitBudget::default();
         let starts = reidentified(&data, &bent, &budget);

@@ -473,36 +473,22 @@ fn fit_given_order(
     let (j, spectra) = (pairs.j, &pairs.spectra[..pairs.confirmed]);
     let k = m - 1;
     let init = if k < spectra.len() {
-        let choices = combinations(spectra.len(), k, 32);
-        let mut best: Option<ChainFit> = None;
-        let mut last_err = None;
-        let budget = &opts.fit.budget;
-        for keep in choices {
-            if budget.expired() && best.is_some() {
-                budget.skip_order();
-                continue;
-            }
-            budget.begin_fit(m, opts.fit.starts);
-            let sel: Vec<(f64, f64)> = keep.iter().map(|&i| spectra[i]).collect();
-            let Some(init) = exact_chain(j, &sel) else {
-                continue;
-            };
-            match fit_chain(analysis.fitted_frf(), &init, fit_opts) {
-                Ok(f) if best.as_ref().is_none_or(|b| f.cost < b.cost) => best = Some(f),
-                Ok(_) => {}
-                Err(e) => last_err = Some(e),
-            }
-        }
-        match (best, last_err) {
-            (Some(f), _) => {
+        let inits = combinations(spectra.len(), k, 32)
+            .into_iter()
+            .filter_map(|keep| {
+                let sel: Vec<(f64, f64)> = keep.iter().map(|&i| spectra[i]).collect();
+                exact_chain(j, &sel)
+            });
+        match fit_lowest_cost(analysis.fitted_frf(), inits, m, fit_opts, opts) {
+            Some(Ok(f)) => {
                 analysis.notes.push(format!(
                     "{m} bodies asked for, {} pairs detected: every choice of {k} pairs was fitted and the best kept",
                     spectra.len()
                 ));
                 return Ok(f);
             }
-            (None, Some(e)) => return Err(e.into()),
-            (None, None) => None,
+            Some(Err(e)) => return Err(e.into()),
+            None => None,
         }
     } else if k == spectra.len() {
         pairs.chain_with(k)
@@ -544,34 +530,50 @@ fn fit_given_order(
                 ""
             }
         ));
-        let inits: Vec<Chain> = std::iter::once(near_top(spectra.to_vec()))
+        let inits = std::iter::once(near_top(spectra.to_vec()))
             .chain(with_rejected)
-            .filter_map(|sel| exact_chain(j, &sel))
-            .collect();
-        // each start fitted, the lowest cost kept (the error of the last when none fits)
-        let mut best: Option<Result<ChainFit, IdentifyError>> = None;
-        for init in &inits {
-            opts.fit.budget.begin_fit(m, opts.fit.starts);
-            let f = fit_chain(analysis.fitted_frf(), init, fit_opts);
-            best = match (best, f) {
-                (Some(Ok(b)), Ok(f)) if b.cost <= f.cost => Some(Ok(b)),
-                (Some(Ok(b)), Err(_)) => Some(Ok(b)),
-                (_, f) => Some(f),
-            };
+            .filter_map(|sel| exact_chain(j, &sel));
+        match fit_lowest_cost(analysis.fitted_frf(), inits, m, fit_opts, opts) {
+            Some(r) => return Ok(r?),
+            None => None,
         }
-        return match best {
-            Some(r) => Ok(r?),
-            None => Err(IdentifyError::InvalidArgument(
-                "no initial chain could be formed from the detected pairs".into(),
-            )
-            .into()),
-        };
     };
     let init = init.ok_or(IdentifyError::InvalidArgument(
         "no initial chain could be formed from the detected pairs".into(),
     ))?;
     opts.fit.budget.begin_fit(m, opts.fit.starts);
     Ok(fit_chain(analysis.fitted_frf(), &init, fit_opts)?)
+}
+
+/// Each of the initial chains `inits` fitted (`m` bodies) and the lowest cost kept; the
+/// last error when none fits, `None` without any chain. Once the time cap has passed and a
+/// fit exists, the remaining chains are skipped.
+fn fit_lowest_cost(
+    frf: &Frf,
+    inits: impl IntoIterator<Item = Chain>,
+    m: usize,
+    fit_opts: &FitOptions,
+    opts: &AnalysisOptions,
+) -> Option<Result<ChainFit, IdentifyError>> {
+    let budget = &opts.fit.budget;
+    let (mut best, mut last_err): (Option<ChainFit>, Option<IdentifyError>) = (None, None);
+    for init in inits {
+        if budget.expired() && best.is_some() {
+            budget.skip_order();
+            continue;
+        }
+        budget.begin_fit(m, opts.fit.starts);
+        match fit_chain(frf, &init, fit_opts) {
+            Ok(f) if best.as_ref().is_none_or(|b| f.cost < b.cost) => best = Some(f),
+            Ok(_) => {}
+            Err(e) => last_err = Some(e),
+        }
+    }
+    match (best, last_err) {
+        (Some(f), _) => Some(Ok(f)),
+        (None, Some(e)) => Some(Err(e)),
+        (None, None) => None,
+    }
 }
 
 /// Notch-peak pairs among the rejected candidates (a rejected notch and the nearest

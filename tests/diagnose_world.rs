@@ -618,3 +618,32 @@ fn cases_are_reproducible_from_their_seeds() {
         );
     }
 }
+
+/// An arm under gravity is measured in its linear range, as a technician would: it starts
+/// at rest where it hangs and the levels keep its swing small (the world's
+/// `gravity_level_scale`), so that even a slow swept or stepped sine near the swing's
+/// resonance never lifts it past the horizontal (before: twelve half-turns over the top at
+/// the high level). The first development gravity case measured with a sine, at 1 kHz.
+#[test]
+fn an_arm_under_gravity_swings_within_its_linear_range() {
+    use world::cases::Group;
+    use world::excitation::Kind;
+    use world::generate::{measure, plan};
+    let p = (0..40)
+        .map(|k| plan(&spec(Group::A, "gravity", k, Some(1000.0))))
+        .find(|p| matches!(p.design.kind, Kind::SweptSine | Kind::SteppedSine))
+        .expect("a gravity case measured with a sine");
+    let kind = p.design.kind;
+    let dir = tempfile::tempdir().unwrap();
+    let case = measure(p, dir.path());
+    for (level, path) in case.recordings.iter().enumerate() {
+        let rec = flexid::recording::read_recording(path).unwrap();
+        let q = rec.position_rad.as_ref().expect("a position reading");
+        let largest = q.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+        println!("{kind:?} level {level}: largest motor angle {largest:.3} rad");
+        assert!(
+            largest < std::f64::consts::FRAC_PI_2,
+            "level {level}: the arm swung to {largest} rad"
+        );
+    }
+}

@@ -45,7 +45,9 @@ struct World {
     noise_factor: f64,
 }
 
-fn draw_world(spec: &Spec, rng: &mut impl Rng) -> World {
+/// `level_scale` multiplies both levels and the noise drawn against them (1 but where a
+/// swinging arm must be kept in its linear range, [`gravity_level_scale`]).
+fn draw_world(spec: &Spec, rng: &mut impl Rng, level_scale: f64) -> World {
     let var = if spec.group == Group::E {
         spec.class
     } else {
@@ -105,7 +107,7 @@ fn draw_world(spec: &Spec, rng: &mut impl Rng) -> World {
     // levels: the high one moves the motor at 0.3-3 rad/s RMS, the low one 3-5x below
     let grid = design.grid_hz();
     let v_high = log_uniform(rng, 0.3, 3.0);
-    let rms_high = v_high / analytic::rms_velocity(&plant, &grid, 1.0);
+    let rms_high = level_scale * v_high / analytic::rms_velocity(&plant, &grid, 1.0);
     let rms_low = rms_high / rng.random_range(3.0..5.0);
     let levels = vec![rms_low, rms_high];
     plant.torque_noise_nm = noise_factor * log_uniform(rng, 1e-3, 1e-2) * rms_low;
@@ -295,12 +297,63 @@ pub struct Plan {
 /// nothing simulated): to select cases by excitation before generating them.
 pub fn drawn_kind(spec: &Spec) -> Kind {
     let mut rng = rand::rngs::StdRng::seed_from_u64(spec.seed ^ 0x3017_d1a6_0a1d);
-    draw_world(spec, &mut rng).design.kind
+    draw_world(spec, &mut rng, 1.0).design.kind
 }
 
+/// The plan of a case: drawn at the world's levels, and drawn again (the same draws) at
+/// lower levels where they would swing an arm under gravity out of its linear range.
 pub fn plan(spec: &Spec) -> Plan {
+    let drawn = plan_at(spec, 1.0);
+    match gravity_level_scale(&drawn) {
+        Some(scale) => plan_at(spec, scale),
+        None => drawn,
+    }
+}
+
+/// The largest departure of the gravity stiffness's describing function from `m g l`
+/// that a measurement of gravity as a linear effect may carry: 1 %.
+const GRAVITY_LINEARITY: f64 = 0.01;
+
+/// The factor that brings the high level's swing of an arm under gravity within
+/// [`GRAVITY_LINEARITY`], None when it is within already (or there is no gravity).
+///
+/// A technician measuring an arm that hangs under gravity keeps its swing small, as the
+/// linearised gravity stiffness `m g l` is only what the arm shows at small swings: for a
+/// sine of amplitude `a` the describing function of `m g l sin q` is `m g l 2 J1(a)/a ~
+/// m g l (1 - a^2/8)`; for a Gaussian swing of RMS `s` (a multisine) the mean slope is
+/// `m g l exp(-s^2/2)`. Without the limit a swept or stepped sine near the swing's
+/// resonance throws the arm over the top (seen: twelve half-turns).
+fn gravity_level_scale(plan: &Plan) -> Option<f64> {
+    let g = plan.plant.gravity.as_ref()?;
+    let rms = plan.ctx.reference.levels_rms_nm[plan.ctx.high()];
+    let lines = plan.design.grid_hz();
+    let excess = match plan.design.kind {
+        Kind::SweptSine | Kind::SteppedSine => {
+            // a sine at each frequency in turn: amplitude sqrt(2) rms |H_body|
+            let a_max = (8.0 * GRAVITY_LINEARITY).sqrt();
+            let gain = lines
+                .iter()
+                .map(|&f| {
+                    (analytic::drive(&plan.plant, f)
+                        * analytic::body_positions(&plan.plant, f)[g.body])
+                        .norm()
+                })
+                .fold(0.0, f64::max);
+            std::f64::consts::SQRT_2 * rms * gain / a_max
+        }
+        _ => {
+            let s_max = (-2.0 * (1.0 - GRAVITY_LINEARITY).ln()).sqrt();
+            analytic::rms_motion(&plan.plant, &plan.ctx.reference.lines_hz, rms).position_rad
+                [g.body]
+                / s_max
+        }
+    };
+    (excess > 1.0).then(|| 1.0 / excess)
+}
+
+fn plan_at(spec: &Spec, level_scale: f64) -> Plan {
     let mut rng = rand::rngs::StdRng::seed_from_u64(spec.seed ^ 0x3017_d1a6_0a1d);
-    let world = draw_world(spec, &mut rng);
+    let world = draw_world(spec, &mut rng, level_scale);
     let ctx = &world.ctx;
     let judge = Judge::new(ctx);
     let names: Vec<&str> = match spec.group {

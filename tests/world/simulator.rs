@@ -327,8 +327,13 @@ impl Sim {
     /// under `u` neither drifts nor sits off zero on average (as a position loop of a low
     /// bandwidth would keep a real axis). Position-dependent forces (a cubic ground spring,
     /// cogging, gravity) then act around their rest position, not around wherever an
-    /// uncentred start would carry the axis.
+    /// uncentred start would carry the axis. An arm under gravity is not free: it hangs,
+    /// and starts at rest where it hangs (a free body's centring velocity would throw it
+    /// into a swing of its own, over the top on a slow sine).
     pub fn start_centred(&mut self, u: &[f64]) {
+        if self.plant.gravity.is_some() {
+            return;
+        }
         let jt = self.plant.total_inertia_kgm2();
         let ts = self.ts;
         // velocity and position of a free rigid body from rest, per sample

@@ -566,6 +566,61 @@ fn the_refit_nominal_chain_absorbs_chain_changes_not_a_delay() {
     assert!(after > 0.5 * before, "{after} of {before}");
 }
 
+/// A cause outside the library is judged beyond the nominal model and a library delay
+/// (`Projector::with_delay`): a drive delay of 0.4 samples is taken by the refit to within
+/// 1 % of its visibility; so is most of a low-pass on the position reading at the band's
+/// top (under 5 % of its visibility beyond the chain is left: a chain and a delay mimic its
+/// roll-off there), while one at a quarter of the top stays visible beyond the delay (more
+/// than the line noise; its roll-off within the band is no delay). The world sizes such a cause until it shows
+/// beyond the delay.
+#[test]
+fn a_cause_outside_the_library_is_judged_beyond_a_delay() {
+    use world::cases::Group;
+    use world::generate::plan;
+    use world::plant::LowPass;
+    use world::visibility::{delta_linear, sigma_ln, visibility, Projector};
+    let a = plan(&spec(Group::A, "none", 0, Some(1000.0)));
+    let (nominal, r) = (&a.ctx.nominal, &a.ctx.reference);
+    let sigma = sigma_ln(nominal, r);
+    let chain_only = Projector::new(nominal, r, sigma.clone());
+    let with_delay = Projector::new(nominal, r, sigma.clone()).with_delay(r.fs_hz);
+    let mut delayed = nominal.clone();
+    delayed.drive.delay_s += 0.4 / r.fs_hz;
+    let d = delta_linear(nominal, &delayed, r);
+    let (alone, beyond) = (
+        visibility(&chain_only.residual(&d), &sigma),
+        visibility(&with_delay.residual(&d), &sigma),
+    );
+    println!("delay: visibility {alone:.2} beyond the chain, {beyond:.4} beyond a delay too");
+    assert!(alone > 10.0, "{alone}");
+    assert!(beyond < 0.01 * alone, "{beyond} of {alone}");
+    let f_max = r.lines_hz.last().copied().unwrap();
+    let beyond_of = |corner_hz: f64| {
+        let mut filtered = nominal.clone();
+        filtered.sensor.lowpass = Some(LowPass {
+            order: 2,
+            bandwidth_hz: corner_hz,
+            damping_ratio: std::f64::consts::FRAC_1_SQRT_2,
+        });
+        let d = delta_linear(nominal, &filtered, r);
+        let v = (
+            visibility(&chain_only.residual(&d), &sigma),
+            visibility(&with_delay.residual(&d), &sigma),
+        );
+        println!(
+            "low-pass at {corner_hz:.1} Hz: visibility {:.2} beyond the chain, {:.2} beyond a delay too",
+            v.0, v.1
+        );
+        v
+    };
+    let (alone, beyond) = beyond_of(f_max);
+    assert!(alone > 10.0, "{alone}");
+    assert!(beyond < 0.05 * alone, "{beyond} of {alone}");
+    let (alone_q, beyond_q) = beyond_of(f_max / 4.0);
+    assert!(beyond_q > 1.0, "{beyond_q}");
+    assert!(beyond_q / alone_q > 2.0 * beyond / alone);
+}
+
 /// Each case is reproducible from its seed: generated twice, the recordings (CSV and
 /// sidecar) and the truth file are the same bytes; the sidecar names the sample rate and
 /// the excitation. The first development case of one class per group, and cases forced

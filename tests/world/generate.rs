@@ -194,6 +194,9 @@ struct Judge<'a> {
     ctx: &'a Context,
     sigma: Vec<Vec<f64>>,
     projector: Projector,
+    /// The projector that may also add a drive delay: a cause outside the library is
+    /// judged beyond the nominal model and the library's delay ([`Projector::with_delay`]).
+    beyond_delay: Projector,
     nominal_sim: std::cell::OnceCell<super::visibility::Simulated>,
 }
 
@@ -203,6 +206,8 @@ impl<'a> Judge<'a> {
         Judge {
             ctx,
             projector: Projector::new(&ctx.nominal, &ctx.reference, sigma.clone()),
+            beyond_delay: Projector::new(&ctx.nominal, &ctx.reference, sigma.clone())
+                .with_delay(ctx.fs_hz),
             sigma,
             nominal_sim: std::cell::OnceCell::new(),
         }
@@ -223,17 +228,33 @@ impl<'a> Judge<'a> {
             .then(|| delta_of(&nominal.response, &with.response))
     }
 
-    /// Visibility beyond the nominal model (what no re-fitted nominal chain absorbs), and
-    /// against the true nominal chain; `None` when the response is not periodic.
-    fn visibility(&self, plant: &Plant, linear: bool) -> Option<(f64, f64)> {
-        self.delta(plant, linear).map(|d| self.visibility_of(&d))
+    /// Visibility beyond the nominal model (what no re-fitted nominal chain absorbs; for a
+    /// cause `outside` the library, nor a library delay), and against the true nominal
+    /// chain; `None` when the response is not periodic.
+    fn visibility(&self, plant: &Plant, linear: bool, outside: bool) -> Option<(f64, f64)> {
+        self.delta(plant, linear)
+            .map(|d| self.visibility_of(&d, outside))
     }
 
-    fn visibility_of(&self, delta: &[Vec<flexid::Complex64>]) -> (f64, f64) {
+    fn visibility_of(&self, delta: &[Vec<flexid::Complex64>], outside: bool) -> (f64, f64) {
         (
-            visibility(&self.projector.residual(delta), &self.sigma),
+            visibility(&self.residual(delta, outside), &self.sigma),
             visibility(delta, &self.sigma),
         )
+    }
+
+    /// What is left of `delta` beyond the nominal model (and, for a cause `outside` the
+    /// library, beyond a library delay).
+    fn residual(
+        &self,
+        delta: &[Vec<flexid::Complex64>],
+        outside: bool,
+    ) -> Vec<Vec<flexid::Complex64>> {
+        if outside {
+            self.beyond_delay.residual(delta)
+        } else {
+            self.projector.residual(delta)
+        }
     }
 
     /// The least visibility a diagnosis can be required to see ([`detectable`]).
@@ -250,7 +271,9 @@ fn full_size(knob: &Knob, judge: &Judge, drawn: f64, target: f64) -> (f64, f64, 
         let mut p = judge.ctx.nominal.clone();
         knob.apply(&mut p, s);
         // a size whose response is not periodic is too large
-        judge.visibility(&p, knob.linear).map_or(f64::MAX, |v| v.0)
+        judge
+            .visibility(&p, knob.linear, knob.answer == "unexplained")
+            .map_or(f64::MAX, |v| v.0)
     };
     let v_drawn = vis(drawn);
     if v_drawn == f64::MAX {
@@ -388,7 +411,7 @@ fn plan_at(spec: &Spec, level_scale: f64) -> Plan {
         k.apply(&mut p, size);
         let residual = judge
             .delta(&p, k.linear)
-            .map(|d| (judge.projector.residual(&d), d));
+            .map(|d| (judge.residual(&d, k.answer == "unexplained"), d));
         let (v, v_true) = residual.as_ref().map_or((f64::MAX, f64::MAX), |(r, d)| {
             (visibility(r, &judge.sigma), visibility(d, &judge.sigma))
         });
@@ -419,7 +442,7 @@ fn plan_at(spec: &Spec, level_scale: f64) -> Plan {
                 let band = (spec.group == Group::D)
                     .then(|| acting_band(&delta, &ctx.reference.lines_hz))
                     .flatten();
-                (judge.visibility_of(&delta), band)
+                (judge.visibility_of(&delta, spec.group == Group::D), band)
             }
             None => ((f64::MAX, f64::MAX), None),
         }
@@ -454,13 +477,16 @@ fn plan_at(spec: &Spec, level_scale: f64) -> Plan {
 fn required(sizes: &[Sizing], detectable: f64) -> Vec<String> {
     sizes
         .iter()
-        .filter(|s| {
-            s.answer != "unexplained"
-                && s.visibility >= detectable
-                && s.visibility_measured.is_none_or(|v| v >= detectable)
-        })
+        .filter(|s| s.answer != "unexplained" && shows(s, detectable))
         .map(|s| s.answer.clone())
         .collect()
+}
+
+/// Whether the data can show a sizing: its visibility beyond the nominal model (for a
+/// cause outside the library, beyond a library delay too) reaches `detectable`, by the
+/// noise model and, where the case's recordings measured it, by their own scatter.
+fn shows(s: &Sizing, detectable: f64) -> bool {
+    s.visibility >= detectable && s.visibility_measured.is_none_or(|v| v >= detectable)
 }
 
 /// Generate `spec` into `dir` (created): two recordings `level0.csv`, `level1.csv` (low,
@@ -541,7 +567,15 @@ pub fn measure(plan: Plan, dir: &Path) -> Case {
     let verdict = match spec.group {
         Group::A | Group::B => Some(effects.first().cloned().unwrap_or_else(|| "none".into())),
         Group::C => None,
-        Group::D => Some("unexplained".into()),
+        // a cause the data cannot show is not required either: the right answer is `none`
+        Group::D => Some(
+            if sizes.iter().any(|s| shows(s, plan.detectable)) {
+                "unexplained"
+            } else {
+                "none"
+            }
+            .into(),
+        ),
         Group::E => Some("none".into()),
     };
     let truth = Truth {

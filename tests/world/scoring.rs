@@ -66,13 +66,15 @@ pub fn overlaps(a: [f64; 2], b: [f64; 2]) -> bool {
 /// The group's rule: A, B and E the verdict; C both effects among those named; D
 /// `unexplained` with a band overlapping where the cause acts (`bands`: the cores of the
 /// diagnosis's bands, where the error is at least half its largest: a band whose
-/// significant range shades the whole spectrum overlaps any cause and points at none).
+/// significant range shades the whole spectrum overlaps any cause and points at none); a
+/// cause the data cannot show asks for `none`.
 pub fn right(truth: &Truth, verdict: &str, effects: &[String], bands: &[[f64; 2]]) -> bool {
     match truth.group {
         Group::A | Group::B | Group::E => truth.verdict.as_deref() == Some(verdict),
         // a pair neither of whose effects the data can show asks for `none`
         Group::C if truth.effects.is_empty() => verdict == "none",
         Group::C => truth.effects.iter().all(|e| effects.contains(e)),
+        Group::D if truth.verdict.as_deref() == Some("none") => verdict == "none",
         Group::D => {
             verdict == "unexplained"
                 && truth

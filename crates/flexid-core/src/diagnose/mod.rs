@@ -8,6 +8,7 @@
 //! [`trajectory`] instead: the rigid body with friction by inverse dynamics.
 
 pub mod acceleration;
+pub mod after_torque;
 pub mod amplitude_mode;
 pub mod damper_free;
 pub mod distortion;
@@ -891,7 +892,7 @@ fn diagnose_from(
     if let Some(tp) = &data.torque {
         notes.push(tp.describe());
     }
-    drop_contradicted_by_reading(data, &mut fits, &mut notes);
+    let dropped = drop_contradicted_by_reading(data, &mut fits, &mut notes);
     keep_better_gravity(&mut fits, ground_as_gravity);
     gravity_beyond_viscous(data, &mut fits, &viscous, &mut notes);
 
@@ -984,6 +985,12 @@ fn diagnose_from(
             ));
             effects.clear();
         }
+    }
+    // a lag the torque reading places after the torque explains the gap better: out of
+    // the library
+    if let Some((_, note)) = after_torque::better_than_named(data, &effects, &dropped) {
+        notes.push(note);
+        effects.clear();
     }
     let mut verdict = match effects.first() {
         Some(s) => s.effect,
@@ -1133,17 +1140,25 @@ impl Next<'_> {
                 fits.extend(effects::hardening::fit(data, base));
             }
         }
-        drop_contradicted_by_reading(data, &mut fits, &mut Vec::new());
+        let _ = drop_contradicted_by_reading(data, &mut fits, &mut Vec::new());
         fits
     }
 }
 
 /// Drop the candidates the drive's torque reading contradicts, if there is one
-/// ([`torque_path::drop_contradicted`], against what noise alone gives a fit on `data`).
-fn drop_contradicted_by_reading(data: &Data, fits: &mut Vec<EffectFit>, notes: &mut Vec<String>) {
-    if let Some(tp) = &data.torque {
-        let expected = data.noise.mean * data.lines() as f64;
-        torque_path::drop_contradicted(tp, data.levels[0].io_delay, expected, fits, notes);
+/// ([`torque_path::drop_contradicted`], against what noise alone gives a fit on `data`);
+/// returns the dropped fits.
+fn drop_contradicted_by_reading(
+    data: &Data,
+    fits: &mut Vec<EffectFit>,
+    notes: &mut Vec<String>,
+) -> Vec<EffectFit> {
+    match &data.torque {
+        Some(tp) => {
+            let expected = data.noise.mean * data.lines() as f64;
+            torque_path::drop_contradicted(tp, data.levels[0].io_delay, expected, fits, notes)
+        }
+        None => Vec::new(),
     }
 }
 

@@ -436,32 +436,37 @@ impl TorquePath {
 }
 
 /// Drop the candidates whose torque path the reading contradicts ([`TorquePath::contradicts`],
-/// `expected_chi2` what noise alone gives their fits), with a note for each.
+/// `expected_chi2` what noise alone gives their fits), with a note for each; returns the
+/// dropped fits (evidence of a lag after the torque, [`super::after_torque`]).
 pub fn drop_contradicted(
     tp: &TorquePath,
     io_delay: u32,
     expected_chi2: f64,
     fits: &mut Vec<EffectFit>,
     notes: &mut Vec<String>,
-) {
-    fits.retain(|f| {
-        let bad = tp.contradicts(f, io_delay, expected_chi2);
-        if bad {
-            let claim = match f.lin.current_loop {
-                Some(lp) => format!("current loop (order {}, {:.1} Hz)", lp.order, lp.bandwidth_hz),
-                None => format!(
-                    "delay of {:.2} samples beyond the recording's {io_delay}",
-                    f.lin.delay_s * tp.fs
-                ),
-            };
-            notes.push(format!(
-                "{}: its {claim} is not in the drive's torque reading, which is the command of {:.0} sample(s) before within the noise: not a candidate (the lag is after the torque: in the position measurement or the mechanics)",
-                f.effect,
-                tp.clean.delay_s * tp.fs + 1.0,
-            ));
-        }
-        !bad
-    });
+) -> Vec<EffectFit> {
+    let (bad, good): (Vec<EffectFit>, Vec<EffectFit>) = std::mem::take(fits)
+        .into_iter()
+        .partition(|f| tp.contradicts(f, io_delay, expected_chi2));
+    *fits = good;
+    for f in &bad {
+        let claim = match f.lin.current_loop {
+            Some(lp) => format!(
+                "current loop (order {}, {:.1} Hz)",
+                lp.order, lp.bandwidth_hz
+            ),
+            None => format!(
+                "delay of {:.2} samples beyond the recording's {io_delay}",
+                f.lin.delay_s * tp.fs
+            ),
+        };
+        notes.push(format!(
+            "{}: its {claim} is not in the drive's torque reading, which is the command of {:.0} sample(s) before within the noise: not a candidate (the lag is after the torque: in the position measurement or the mechanics)",
+            f.effect,
+            tp.clean.delay_s * tp.fs + 1.0,
+        ));
+    }
+    bad
 }
 
 fn loop1(bw_hz: f64) -> Loop {

@@ -194,8 +194,10 @@ struct Judge<'a> {
     ctx: &'a Context,
     sigma: Vec<Vec<f64>>,
     projector: Projector,
-    /// The projector that may also add a drive delay: a cause outside the library is
-    /// judged beyond the nominal model and the library's delay ([`Projector::with_delay`]).
+    /// The projector that may also add a drive delay and a spring to the ground: a cause
+    /// outside the library is judged beyond the nominal model and what the library's
+    /// `time_delay` and `gravity` mimic ([`Projector::with_delay`],
+    /// [`Projector::with_ground_spring`]).
     beyond_delay: Projector,
     nominal_sim: std::cell::OnceCell<super::visibility::Simulated>,
 }
@@ -207,7 +209,8 @@ impl<'a> Judge<'a> {
             ctx,
             projector: Projector::new(&ctx.nominal, &ctx.reference, sigma.clone()),
             beyond_delay: Projector::new(&ctx.nominal, &ctx.reference, sigma.clone())
-                .with_delay(ctx.fs_hz),
+                .with_delay(ctx.fs_hz)
+                .with_ground_spring(),
             sigma,
             nominal_sim: std::cell::OnceCell::new(),
         }

@@ -67,7 +67,9 @@ pub fn overlaps(a: [f64; 2], b: [f64; 2]) -> bool {
 /// `unexplained` with a band overlapping where the cause acts (`bands`: the cores of the
 /// diagnosis's bands, where the error is at least half its largest: a band whose
 /// significant range shades the whole spectrum overlaps any cause and points at none); a
-/// cause the data cannot show asks for `none`.
+/// cause the data cannot show asks for `none`. For D, `amplitude_dependent_mode` counts as
+/// `unexplained`: it is the verdict `unexplained` refined by the evidence that a mode moves
+/// with the level (no library effect is named).
 pub fn right(truth: &Truth, verdict: &str, effects: &[String], bands: &[[f64; 2]]) -> bool {
     match truth.group {
         Group::A | Group::B | Group::E => truth.verdict.as_deref() == Some(verdict),
@@ -75,8 +77,10 @@ pub fn right(truth: &Truth, verdict: &str, effects: &[String], bands: &[[f64; 2]
         Group::C if truth.effects.is_empty() => verdict == "none",
         Group::C => truth.effects.iter().all(|e| effects.contains(e)),
         Group::D if truth.verdict.as_deref() == Some("none") => verdict == "none",
+        // `amplitude_dependent_mode` is `unexplained` with its evidence (no candidate
+        // explains the gap, and a mode moves with the level): not a library name
         Group::D => {
-            verdict == "unexplained"
+            matches!(verdict, "unexplained" | "amplitude_dependent_mode")
                 && truth
                     .band_hz
                     .is_some_and(|t| bands.iter().any(|b| overlaps(*b, t)))

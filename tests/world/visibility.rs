@@ -383,6 +383,10 @@ pub struct Projector {
     /// The additive step of the drive's delay [s] (one sample), when the refit may add a
     /// delay ([`Projector::with_delay`]).
     delay_step: Option<f64>,
+    /// The additive step of a spring from the load to the ground [N m/rad] (the total
+    /// inertia at the lowest line), when the refit may add one
+    /// ([`Projector::with_ground_spring`]).
+    spring_step: Option<f64>,
 }
 
 /// The largest change of one parameter in one refit step (log units).
@@ -400,6 +404,8 @@ enum Param {
     GroundDamper,
     /// The drive's delay (from the nominal one, never below zero).
     Delay,
+    /// A spring from the load to the ground (from none, never below zero).
+    GroundSpring,
 }
 
 impl Projector {
@@ -417,7 +423,20 @@ impl Projector {
             h_nominal,
             b_step: jt * 2.0 * std::f64::consts::PI * 0.1,
             delay_step: None,
+            spring_step: None,
         }
+    }
+
+    /// The refit may also add a spring from the load to the ground (the library's
+    /// `gravity` at small angles): a cause outside the library that only shows as a
+    /// restoring stiffness (cogging at small swings, a detent) is `gravity` to any
+    /// diagnosis, and is outside the library only where it shows beyond that spring (its
+    /// stiffness changing with the level, ...).
+    pub fn with_ground_spring(mut self) -> Projector {
+        let jt = self.nominal.total_inertia_kgm2();
+        let w = 2.0 * std::f64::consts::PI * self.lines_hz.first().copied().unwrap_or(1.0);
+        self.spring_step = Some(jt * w * w);
+        self
     }
 
     /// The refit may also add a delay to the drive: what is left is what neither a
@@ -443,6 +462,9 @@ impl Projector {
         if self.delay_step.is_some() {
             p.push(Param::Delay);
         }
+        if self.spring_step.is_some() {
+            p.push(Param::GroundSpring);
+        }
         p
     }
 
@@ -462,6 +484,16 @@ impl Projector {
                 Param::Delay => {
                     let step = self.delay_step.unwrap_or(0.0);
                     p.drive.delay_s = (p.drive.delay_s + v * step).max(0.0)
+                }
+                Param::GroundSpring => {
+                    let k = (v * self.spring_step.unwrap_or(0.0)).max(0.0);
+                    let body = p.bodies() - 1;
+                    let g = p.gravity.get_or_insert(super::plant::Gravity {
+                        body,
+                        m_g_l_nm: 0.0,
+                        bearing_damping_nms_per_rad: 0.0,
+                    });
+                    g.m_g_l_nm += k;
                 }
             }
         }

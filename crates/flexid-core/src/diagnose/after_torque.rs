@@ -22,13 +22,9 @@ use super::effects::EffectFit;
 use super::rank;
 use super::{Data, Step};
 
-/// A dropped fit that explains the gap better than the named set (see the module's
-/// documentation), and its note; `None` when none does.
-pub fn better_than_named<'a>(
-    data: &Data,
-    named: &[Step],
-    dropped: &'a [EffectFit],
-) -> Option<(&'a EffectFit, String)> {
+/// The note on a dropped fit that explains the gap better than the named set (see the
+/// module's documentation); `None` when none does.
+pub fn better_than_named(data: &Data, named: &[Step], dropped: &[EffectFit]) -> Option<String> {
     let last = named.last()?;
     let per_line = data.noise.mean;
     let pen = (data.lines() as f64).ln();
@@ -61,7 +57,7 @@ pub fn better_than_named<'a>(
                 d.chi2,
                 100.0 * (last.fit.chi2 - d.chi2) / left
             );
-            (d, note)
+            note
         })
 }
 
@@ -98,7 +94,7 @@ mod tests {
             score: 0.0,
             fit: delay,
         }];
-        better_than_named(&data, &named, std::slice::from_ref(&lowpass)).map(|(_, n)| n)
+        better_than_named(&data, &named, std::slice::from_ref(&lowpass))
     }
 
     /// A second-order low-pass at 900 Hz (the position reading's filter; on the FRF it is

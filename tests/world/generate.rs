@@ -198,7 +198,7 @@ struct Judge<'a> {
     /// outside the library is judged beyond the nominal model and what the library's
     /// `time_delay` and `gravity` mimic ([`Projector::with_delay`],
     /// [`Projector::with_ground_spring`]).
-    beyond_delay: Projector,
+    beyond_library: Projector,
     nominal_sim: std::cell::OnceCell<super::visibility::Simulated>,
 }
 
@@ -208,7 +208,7 @@ impl<'a> Judge<'a> {
         Judge {
             ctx,
             projector: Projector::new(&ctx.nominal, &ctx.reference, sigma.clone()),
-            beyond_delay: Projector::new(&ctx.nominal, &ctx.reference, sigma.clone())
+            beyond_library: Projector::new(&ctx.nominal, &ctx.reference, sigma.clone())
                 .with_delay(ctx.fs_hz)
                 .with_ground_spring(),
             sigma,
@@ -232,8 +232,8 @@ impl<'a> Judge<'a> {
     }
 
     /// Visibility beyond the nominal model (what no re-fitted nominal chain absorbs; for a
-    /// cause `outside` the library, nor a library delay), and against the true nominal
-    /// chain; `None` when the response is not periodic.
+    /// cause `outside` the library, nor what a library delay or ground spring mimics), and
+    /// against the true nominal chain; `None` when the response is not periodic.
     fn visibility(&self, plant: &Plant, linear: bool, outside: bool) -> Option<(f64, f64)> {
         self.delta(plant, linear)
             .map(|d| self.visibility_of(&d, outside))
@@ -247,14 +247,14 @@ impl<'a> Judge<'a> {
     }
 
     /// What is left of `delta` beyond the nominal model (and, for a cause `outside` the
-    /// library, beyond a library delay).
+    /// library, beyond a library delay and ground spring).
     fn residual(
         &self,
         delta: &[Vec<flexid::Complex64>],
         outside: bool,
     ) -> Vec<Vec<flexid::Complex64>> {
         if outside {
-            self.beyond_delay.residual(delta)
+            self.beyond_library.residual(delta)
         } else {
             self.projector.residual(delta)
         }

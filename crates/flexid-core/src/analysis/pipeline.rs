@@ -7,7 +7,7 @@ use crate::identify::detect::{
 use crate::identify::error::IdentifyError;
 use crate::identify::exact::{chain_from_spectra, with_coupling_damping};
 use crate::identify::fit::{
-    fit_chain, select_confirmed_order, ChainFit, FitOptions, OrderCandidate,
+    coarse_fit, fit_chain, select_confirmed_order, ChainFit, FitOptions, OrderCandidate,
 };
 use crate::identify::ground_damper::{self, GroundDamping};
 use crate::identify::inertia::{estimate_inertia, estimate_inertia_below_pairs, InertiaEstimate};
@@ -557,6 +557,10 @@ fn fit_lowest_cost(
 ) -> Option<Result<ChainFit, IdentifyError>> {
     let budget = &opts.fit.budget;
     let (mut best, mut last_err): (Option<ChainFit>, Option<IdentifyError>) = (None, None);
+    let mut inits: Vec<Chain> = inits.into_iter().collect();
+    if inits.len() > SCREENED {
+        inits = screened(frf, inits, fit_opts, budget, &mut last_err);
+    }
     for init in inits {
         if budget.expired() && best.is_some() {
             budget.skip_order();
@@ -574,6 +578,38 @@ fn fit_lowest_cost(
         (None, Some(e)) => Some(Err(e)),
         (None, None) => None,
     }
+}
+
+/// More initial chains than this are screened ([`screened`]) before the multi-start fits.
+/// The budget of the search, not a tolerance: `SCREENED` multi-start fits, each of
+/// `FitOptions::starts` starts, around the best single-start optima.
+const SCREENED: usize = 3;
+
+/// The `SCREENED` best of `inits` after the coarse phase of a single start from each
+/// ([`coarse_fit`]), as their coarse optima: the many choices of pairs a requested order
+/// leaves (28 for two of eight detected pairs) are each one start of the search, and the
+/// multi-start fits go where those ended lowest. An init whose coarse fit fails is dropped
+/// (its error kept in `last_err`).
+fn screened(
+    frf: &Frf,
+    inits: Vec<Chain>,
+    fit_opts: &FitOptions,
+    budget: &crate::identify::fit::FitBudget,
+    last_err: &mut Option<IdentifyError>,
+) -> Vec<Chain> {
+    let mut fits: Vec<(Chain, f64)> = Vec::with_capacity(inits.len());
+    for init in &inits {
+        if budget.expired() && !fits.is_empty() {
+            break;
+        }
+        match coarse_fit(frf, init, fit_opts) {
+            Ok(f) if f.1.is_finite() => fits.push(f),
+            Ok(_) => {}
+            Err(e) => *last_err = Some(e),
+        }
+    }
+    fits.sort_by(|a, b| a.1.total_cmp(&b.1));
+    fits.into_iter().take(SCREENED).map(|f| f.0).collect()
 }
 
 /// Notch-peak pairs among the rejected candidates (a rejected notch and the nearest

@@ -229,6 +229,37 @@ pub(super) fn fit_chain_coarse(
     })
 }
 
+/// The coarse phase of [`fit_chain`] for one start, `init` itself: its optimum on every
+/// `k`-th line (about `COARSE_LINES` lines, on all where there are fewer than twice as
+/// many) with the coarse tolerances, and its cost there. Costs of different starts on the
+/// same `frf` and options are comparable: a screen of many starts before multi-start fits.
+pub fn coarse_fit(
+    frf: &Frf,
+    init: &Chain,
+    opts: &FitOptions,
+) -> Result<(Chain, f64), IdentifyError> {
+    init.validate()?;
+    let data = prepare(frf, init.masses(), opts)?;
+    let stride = (data.z.len() / COARSE_LINES).max(1);
+    let coarse = data.decimated(stride);
+    let np = data.params();
+    let lm = LmOptions {
+        ftol: 1e-8,
+        xtol: 1e-6,
+        gtol: 1e-8,
+        max_evals: opts.max_iter.div_ceil(np + 1).max(1) * (np + 1),
+        damping: Damping::Nielsen,
+    };
+    let r = run_one(&coarse, theta_of(init).as_slice(), &lm).map_err(|reason| {
+        IdentifyError::FitFailed {
+            masses: init.masses(),
+            starts: 1,
+            reason,
+        }
+    })?;
+    Ok((chain_of_theta(&r.theta, init.masses()), r.cost))
+}
+
 /// Lines of the coarse problem the starts of [`fit_chain`] first run on (when there are at
 /// least twice as many).
 const COARSE_LINES: usize = 250;

@@ -107,14 +107,7 @@ pub(super) fn fit_chain_coarse(
     let theta0 = theta_of(init);
     let starts = make_starts(&theta0, init.masses(), opts);
     let threads = worker_threads(opts, starts.len());
-    let np = data.params();
-    let full_lm = LmOptions {
-        ftol: 1e-10,
-        xtol: 1e-8,
-        gtol: 1e-10,
-        max_evals: opts.max_iter.div_ceil(np + 1).max(1) * (np + 1),
-        damping: Damping::Nielsen,
-    };
+    let full_lm = lm_options(opts, data.params(), false);
     let stride = data.z.len() / coarse_lines.max(1);
     let mut last_err = String::from("no start");
     let mut total = 0;
@@ -122,12 +115,7 @@ pub(super) fn fit_chain_coarse(
     let mut finals: Vec<(StartRun, usize)> = Vec::new();
     if stride >= 2 {
         let coarse = data.decimated(stride);
-        let coarse_lm = LmOptions {
-            ftol: 1e-8,
-            xtol: 1e-6,
-            gtol: 1e-8,
-            ..full_lm
-        };
+        let coarse_lm = lm_options(opts, data.params(), true);
         // waves: the first start alone, then WAVE at a time, each seeing the coarse optima
         // of the earlier waves
         let gate = opts.budget.gate(true);
@@ -242,14 +230,7 @@ pub fn coarse_fit(
     let data = prepare(frf, init.masses(), opts)?;
     let stride = (data.z.len() / COARSE_LINES).max(1);
     let coarse = data.decimated(stride);
-    let np = data.params();
-    let lm = LmOptions {
-        ftol: 1e-8,
-        xtol: 1e-6,
-        gtol: 1e-8,
-        max_evals: opts.max_iter.div_ceil(np + 1).max(1) * (np + 1),
-        damping: Damping::Nielsen,
-    };
+    let lm = lm_options(opts, data.params(), true);
     let r = run_one(&coarse, theta_of(init).as_slice(), &lm).map_err(|reason| {
         IdentifyError::FitFailed {
             masses: init.masses(),
@@ -258,6 +239,23 @@ pub fn coarse_fit(
         }
     })?;
     Ok((chain_of_theta(&r.theta, init.masses()), r.cost))
+}
+
+/// The solver's options for `np` parameters: the full tolerances, or the coarse phase's
+/// looser ones; `opts.max_iter` evaluations per start, in whole Jacobians.
+fn lm_options(opts: &FitOptions, np: usize, coarse: bool) -> LmOptions {
+    let (ftol, xtol, gtol) = if coarse {
+        (1e-8, 1e-6, 1e-8)
+    } else {
+        (1e-10, 1e-8, 1e-10)
+    };
+    LmOptions {
+        ftol,
+        xtol,
+        gtol,
+        max_evals: opts.max_iter.div_ceil(np + 1).max(1) * (np + 1),
+        damping: Damping::Nielsen,
+    }
 }
 
 /// Lines of the coarse problem the starts of [`fit_chain`] first run on (when there are at

@@ -525,6 +525,14 @@ fn effects_are_sized_to_their_visibility() {
     }
 }
 
+/// Group A's first case without an effect, at 1 kHz, and the noise of its reference
+/// signal's lines (`sigma_ln`): the plant the visibility tests change.
+fn none_case() -> (world::generate::Plan, Vec<Vec<f64>>) {
+    let a = world::generate::plan(&spec(world::cases::Group::A, "none", 0, Some(1000.0)));
+    let sigma = world::visibility::sigma_ln(&a.ctx.nominal, &a.ctx.reference);
+    (a, sigma)
+}
+
 /// What a re-fitted nominal chain absorbs is not counted as visible: a large change of the
 /// nominal chain's own parameters (a stiffness x1.25, the load x0.85, a ground damper:
 /// visibility of order 200) is followed by the refit to within 1 % of its visibility against
@@ -532,12 +540,9 @@ fn effects_are_sized_to_their_visibility() {
 /// keeps most of it.
 #[test]
 fn the_refit_nominal_chain_absorbs_chain_changes_not_a_delay() {
-    use world::cases::Group;
-    use world::generate::plan;
-    use world::visibility::{delta_linear, sigma_ln, visibility, Projector};
-    let a = plan(&spec(Group::A, "none", 0, Some(1000.0)));
+    use world::visibility::{delta_linear, visibility, Projector};
+    let (a, sigma) = none_case();
     let (nominal, r) = (&a.ctx.nominal, &a.ctx.reference);
-    let sigma = sigma_ln(nominal, r);
     let projector = Projector::new(nominal, r, sigma.clone());
     let mut chain = nominal.clone();
     chain.couplings[0].stiffness_nm_per_rad *= 1.25;
@@ -575,13 +580,10 @@ fn the_refit_nominal_chain_absorbs_chain_changes_not_a_delay() {
 /// beyond the delay.
 #[test]
 fn a_cause_outside_the_library_is_judged_beyond_a_delay() {
-    use world::cases::Group;
-    use world::generate::plan;
     use world::plant::LowPass;
-    use world::visibility::{delta_linear, sigma_ln, visibility, Projector};
-    let a = plan(&spec(Group::A, "none", 0, Some(1000.0)));
+    use world::visibility::{delta_linear, visibility, Projector};
+    let (a, sigma) = none_case();
     let (nominal, r) = (&a.ctx.nominal, &a.ctx.reference);
-    let sigma = sigma_ln(nominal, r);
     let chain_only = Projector::new(nominal, r, sigma.clone());
     let with_delay = Projector::new(nominal, r, sigma.clone()).with_delay(r.fs_hz);
     let mut delayed = nominal.clone();

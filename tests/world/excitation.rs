@@ -4,7 +4,8 @@
 //! lines), a logarithmic swept sine, and a stepped sine; the same design at both levels.
 
 use flexid::excitation::{
-    AmplitudeShape, ChirpDesign, ExcitationInfo, MultisineDesign, PhaseDesign, SteppedSineDesign,
+    AmplitudeShape, ChirpDesign, ExcitationInfo, MultisineDesign, PhaseDesign, SteppedSine,
+    SteppedSineDesign,
 };
 use serde::{Deserialize, Serialize};
 
@@ -126,25 +127,79 @@ impl Design {
                 (c.signal, info)
             }
             Kind::SteppedSine => {
-                let (lo, hi) = (self.band_hz[0], self.band_hz[1]);
-                let n = self.stepped_spots.max(2);
-                let spots = (0..n)
-                    .map(|i| lo * (hi / lo).powf(i as f64 / (n - 1) as f64))
-                    .collect();
-                let d = SteppedSineDesign {
-                    sample_rate_hz: self.fs_hz,
-                    frequencies_hz: spots,
-                    // 10 Hz resolution per block, at least 0.1 s per period
-                    min_period_samples: (0.1 * self.fs_hz).round() as usize,
-                    periods: 4,
-                    settle_periods: 3,
-                    peak_limit_nm: peak,
-                    rms_limit_nm: rms_nm,
-                };
-                let s = d.generate().expect("a valid stepped sine");
+                let s = self.stepped(rms_nm);
                 let info = s.info();
                 (s.signal, info)
             }
         }
+    }
+
+    /// The stepped sine at `rms_nm`: `stepped_spots` log-spaced spots over the band.
+    fn stepped(&self, rms_nm: f64) -> SteppedSine {
+        let (lo, hi) = (self.band_hz[0], self.band_hz[1]);
+        let n = self.stepped_spots.max(2);
+        let spots = (0..n)
+            .map(|i| lo * (hi / lo).powf(i as f64 / (n - 1) as f64))
+            .collect();
+        let d = SteppedSineDesign {
+            sample_rate_hz: self.fs_hz,
+            frequencies_hz: spots,
+            // 10 Hz resolution per block, at least 0.1 s per period
+            min_period_samples: (0.1 * self.fs_hz).round() as usize,
+            periods: 4,
+            settle_periods: 3,
+            peak_limit_nm: 20.0 * rms_nm,
+            rms_limit_nm: rms_nm,
+        };
+        d.generate().expect("a valid stepped sine")
+    }
+
+    /// The energy `E` [N^2 m^2 x samples] of the excitation at `rms_nm` that an estimate of
+    /// the response on each of `lines_hz` (spaced `line_spacing_hz`) averages: the scatter of
+    /// `ln H` there is `sqrt(v / (|H|^2 E))` for a white noise `v` per sample on the reading.
+    /// A periodic multisine with line amplitude `A` over `N` samples has `E = N A^2 / 4`; a
+    /// logarithmic sweep spends a time `~ 1/f` per hertz, so its `E` falls as `1/f` (from
+    /// the whole record's spectrum, `sum |U_j|^2 / N` over the bins within half a line
+    /// spacing: the `H1` estimate over them); a stepped sine has `periods x P x A^2 / 4`
+    /// at the line nearest each spot and nothing between them (its settle periods are not
+    /// averaged).
+    pub fn line_energy(&self, rms_nm: f64, lines_hz: &[f64]) -> Vec<f64> {
+        let mut e = vec![0.0; lines_hz.len()];
+        let nearest = |f: f64| {
+            let i = lines_hz.partition_point(|&l| l < f);
+            [i.saturating_sub(1), i.min(lines_hz.len() - 1)]
+                .into_iter()
+                .min_by(|&a, &b| (lines_hz[a] - f).abs().total_cmp(&(lines_hz[b] - f).abs()))
+        };
+        if lines_hz.is_empty() {
+            return e;
+        }
+        if self.kind == Kind::SteppedSine {
+            for b in &self.stepped(rms_nm).blocks {
+                let half = 0.5 * self.line_spacing_hz;
+                if let Some(l) = nearest(b.frequency_hz)
+                    .filter(|&l| (lines_hz[l] - b.frequency_hz).abs() <= half)
+                {
+                    e[l] += (b.periods * b.period_samples) as f64 * b.amplitude_nm.powi(2) / 4.0;
+                }
+            }
+            return e;
+        }
+        let (u, _) = self.generate(rms_nm);
+        let n = u.len();
+        let mut planner = realfft::RealFftPlanner::<f64>::new();
+        let fft = planner.plan_fft_forward(n);
+        let mut input = u;
+        let mut spectrum = fft.make_output_vec();
+        fft.process(&mut input, &mut spectrum)
+            .expect("an FFT of the record's length");
+        let half = 0.5 * self.line_spacing_hz;
+        for (j, c) in spectrum.iter().enumerate().skip(1) {
+            let f = j as f64 * self.fs_hz / n as f64;
+            if let Some(l) = nearest(f).filter(|&l| (lines_hz[l] - f).abs() < half) {
+                e[l] += c.norm_sqr() / n as f64;
+            }
+        }
+        e
     }
 }

@@ -23,11 +23,12 @@ use super::plants::{motor_viscous, random_chain};
 use super::simulator::Sim;
 use super::substeps::{substeps, Peaks};
 use super::visibility::{
-    acting_band, delta_linear, delta_of, detectable, measured_sigma_ln, sigma_ln,
-    simulated_response, size_for, visibility, Projector, Reference,
+    acting_band, delta_linear, delta_of, detectable, ln_h1_lines, measured_sigma_ln,
+    repeated_sigma_ln, sigma_ln, simulated_response, size_for, visibility, Projector, Reference,
 };
 use flexid::model::Chain;
 use flexid::recording::{write_recording, Recording, Sidecar};
+use flexid::Complex64;
 use rand::{Rng, SeedableRng};
 use std::path::Path;
 
@@ -122,6 +123,12 @@ fn draw_world(spec: &Spec, rng: &mut impl Rng, level_scale: f64) -> World {
         levels_rms_nm: levels.clone(),
         phase_seed,
         own_periods: own.map(|o| o.1),
+        energy: (design.kind == Kind::SweptSine).then(|| {
+            levels
+                .iter()
+                .map(|&r| design.line_energy(r, &grid))
+                .collect()
+        }),
     };
     let motion = levels
         .iter()
@@ -492,6 +499,24 @@ fn shows(s: &Sizing, detectable: f64) -> bool {
     s.visibility >= detectable && s.visibility_measured.is_none_or(|v| v >= detectable)
 }
 
+/// Repeated recordings of a sweep that measure its scatter per line
+/// ([`repeated_sigma_ln`]).
+const REPEATS: u64 = 6;
+
+/// The reading the estimate divides by the command: the velocity, or the position
+/// differenced (its first sample repeated).
+fn reading_of(out: &[super::simulator::Sample], velocity: bool) -> Vec<f64> {
+    (0..out.len())
+        .map(|i| {
+            if velocity {
+                out[i].velocity_rad_s
+            } else {
+                out[i].position_rad - out[i.saturating_sub(1)].position_rad
+            }
+        })
+        .collect()
+}
+
 /// Generate `spec` into `dir` (created): two recordings `level0.csv`, `level1.csv` (low,
 /// high) with their sidecars, and `truth.json`.
 pub fn generate(spec: &Spec, dir: &Path) -> Case {
@@ -506,6 +531,8 @@ pub fn measure(plan: Plan, dir: &Path) -> Case {
     let mut recordings = Vec::new();
     let mut samples = 0;
     let own_multisine = ctx.reference.own_periods.is_some();
+    // a sweep's scatter from repeated recordings (its record is not periodic)
+    let sweep = plan.design.kind == Kind::SweptSine;
     let mut measured_sigma = Vec::new();
     for (i, &rms) in ctx.reference.levels_rms_nm.iter().enumerate() {
         let (u, info) = plan.design.generate(rms);
@@ -537,6 +564,23 @@ pub fn measure(plan: Plan, dir: &Path) -> Case {
                 &plan.sigma[i],
             ));
         }
+        if sweep {
+            let runs: Vec<Vec<Complex64>> = (0..REPEATS)
+                .map(|j| {
+                    let mut sim = Sim::new(plant, fs, steps, seed.wrapping_mul(31) + 1 + j, false);
+                    sim.start_centred(&u);
+                    let y = reading_of(&sim.run(&u), velocity);
+                    ln_h1_lines(
+                        &u,
+                        &y,
+                        &ctx.reference.lines_hz,
+                        fs,
+                        plan.design.line_spacing_hz,
+                    )
+                })
+                .collect();
+            measured_sigma.push(repeated_sigma_ln(&runs, &plan.sigma[i]));
+        }
         let rec = Recording {
             time_s: (0..u.len()).map(|k| k as f64 / fs).collect(),
             position_rad: (!velocity).then(|| out.iter().map(|s| s.position_rad).collect()),
@@ -558,7 +602,7 @@ pub fn measure(plan: Plan, dir: &Path) -> Case {
     // each effect judged again against the scatter its recordings show
     let mut sizes = plan.sizes.clone();
     let mut effects = plan.effects.clone();
-    if own_multisine {
+    if own_multisine || sweep {
         for (s, r) in sizes.iter_mut().zip(&plan.residuals) {
             s.visibility_measured = Some(
                 r.as_ref()

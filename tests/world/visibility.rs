@@ -43,12 +43,30 @@ pub struct Reference {
     /// Schroeder design, at the same RMS), so it is judged on the measurement the case
     /// makes where the world can.
     pub own_periods: Option<Vec<Vec<f64>>>,
+    /// The case's own excitation's energy per line and level where it is no multisine (a
+    /// sweep, a stepped sine: [`super::excitation::Design::line_energy`]); `None`: the
+    /// reference multisine's, `N P A^2 / 4` on every line. A line without energy is not
+    /// measured (infinite scatter) and not counted.
+    pub energy: Option<Vec<Vec<f64>>>,
 }
 
 impl Reference {
     /// One line's amplitude [N m] at level `i` (the RMS spread evenly over the lines).
     pub fn line_amplitude_nm(&self, i: usize) -> f64 {
         self.levels_rms_nm[i] * (2.0 / self.lines_hz.len() as f64).sqrt()
+    }
+
+    /// The excitation's energy [N^2 m^2 x samples] the estimate averages on each line at
+    /// level `i` (see [`Reference::energy`]).
+    pub fn line_energy(&self, i: usize) -> Vec<f64> {
+        match &self.energy {
+            Some(e) => e[i].clone(),
+            None => {
+                let a = self.line_amplitude_nm(i);
+                let np = (self.period_samples * self.periods) as f64;
+                vec![np * a * a / 4.0; self.lines_hz.len()]
+            }
+        }
     }
 
     /// One period of the reference multisine at level `i` [N m].
@@ -74,13 +92,13 @@ impl Reference {
 /// The one-sigma scatter of `ln H` per line and level for `plant`'s measurement.
 pub fn sigma_ln(plant: &Plant, r: &Reference) -> Vec<Vec<f64>> {
     let q = plant.sensor.count_rad();
-    let np = (r.period_samples * r.periods) as f64;
     (0..r.levels_rms_nm.len())
         .map(|i| {
-            let a = r.line_amplitude_nm(i);
+            let energy = r.line_energy(i);
             r.lines_hz
                 .iter()
-                .map(|&f| {
+                .zip(energy)
+                .map(|(&f, e)| {
                     let h = analytic::position(plant, f);
                     let hw = analytic::disturbance_position(plant, f);
                     let w = 2.0 * std::f64::consts::PI * f;
@@ -89,7 +107,11 @@ pub fn sigma_ln(plant: &Plant, r: &Reference) -> Vec<Vec<f64>> {
                         Output::Velocity => (q * r.fs_hz).powi(2) / 6.0 / (w * w * h.norm_sqr()),
                     };
                     let dist = (plant.torque_noise_nm * hw.norm() / h.norm()).powi(2);
-                    (4.0 * (reading + dist) / (np * a * a)).sqrt()
+                    if e > 0.0 {
+                        ((reading + dist) / e).sqrt()
+                    } else {
+                        f64::INFINITY
+                    }
                 })
                 .collect()
         })
@@ -156,6 +178,13 @@ pub fn measured_sigma_ln(
             (var / pf).sqrt() / mean.norm() / sigma[l]
         })
         .collect();
+    smoothed(&ratio, sigma)
+}
+
+/// The model `sigma` times the measured-to-model `ratio` smoothed over 9 neighbouring
+/// lines (their median: one realisation's chance does not count; the model keeps its
+/// shape across resonances).
+fn smoothed(ratio: &[f64], sigma: &[f64]) -> Vec<f64> {
     (0..ratio.len())
         .map(|l| {
             let (a, b) = (l.saturating_sub(4), (l + 5).min(ratio.len()));
@@ -166,20 +195,76 @@ pub fn measured_sigma_ln(
         .collect()
 }
 
+/// `ln H` per line of a non-periodic record: the `H1` estimate over the record's bins
+/// within half of `spacing_hz` of each line, `y` the reading (differenced when a position)
+/// under the command `u`.
+pub fn ln_h1_lines(
+    u: &[f64],
+    y: &[f64],
+    lines_hz: &[f64],
+    fs_hz: f64,
+    spacing_hz: f64,
+) -> Vec<Complex64> {
+    let n = u.len();
+    let mut planner = RealFftPlanner::<f64>::new();
+    let fft = planner.plan_fft_forward(n);
+    let spectrum = |x: &[f64]| {
+        let mut input = x.to_vec();
+        let mut out = fft.make_output_vec();
+        fft.process(&mut input, &mut out)
+            .expect("an FFT of the record");
+        out
+    };
+    let (uf, yf) = (spectrum(u), spectrum(y));
+    let half = 0.5 * spacing_hz;
+    lines_hz
+        .iter()
+        .map(|&fl| {
+            let lo = ((fl - half) * n as f64 / fs_hz).ceil().max(1.0) as usize;
+            let hi = (((fl + half) * n as f64 / fs_hz).floor() as usize).min(uf.len() - 1);
+            let (mut num, mut den) = (Complex64::new(0.0, 0.0), 0.0);
+            for j in lo..=hi {
+                num += yf[j] * uf[j].conj();
+                den += uf[j].norm_sqr();
+            }
+            (num / den).ln()
+        })
+        .collect()
+}
+
+/// The scatter of `ln H` per line of a non-periodic record (a sweep) as repeated
+/// recordings show it: `runs` holds `ln H` of each (the same command, the noise drawn
+/// anew, [`ln_h1_lines`]); their standard deviation over the model `sigma`, smoothed like
+/// [`measured_sigma_ln`]'s, multiplies the model. Needed where the model's white reading
+/// noise is not what the encoder gives: a motion far below one count at the top of a
+/// sweep quantises into an error that follows the slow motion (a 17-bit sweep scattered
+/// 0.02-0.08 of the model's variance over its top sixth).
+pub fn repeated_sigma_ln(runs: &[Vec<Complex64>], sigma: &[f64]) -> Vec<f64> {
+    let k = runs.len() as f64;
+    let ratio: Vec<f64> = (0..sigma.len())
+        .map(|l| {
+            let mean = runs.iter().map(|h| h[l]).sum::<Complex64>() / k;
+            let var = runs.iter().map(|h| (h[l] - mean).norm_sqr()).sum::<f64>() / (k - 1.0);
+            var.sqrt() / sigma[l]
+        })
+        .collect();
+    smoothed(&ratio, sigma)
+}
+
 /// The least visibility beyond the nominal model that a diagnosis can be required to
 /// see: the expected excess of chi-square over the `L` lines of both levels, `L v^2`,
 /// five standard deviations (`sqrt(L)`, each line's `|D|^2 / s^2` of unit mean and
 /// variance) above the noise alone: `v = (25 / L)^(1/4)`.
 pub fn detectable(sigma: &[Vec<f64>]) -> f64 {
-    let lines: usize = sigma.iter().map(Vec::len).sum();
+    let lines: usize = sigma.iter().flatten().filter(|s| s.is_finite()).count();
     (25.0 / lines.max(1) as f64).powf(0.25)
 }
 
-/// `sqrt(mean |D|^2 / s^2)` over every line of every level.
+/// `sqrt(mean |D|^2 / s^2)` over every measured line (finite `s`) of every level.
 pub fn visibility(delta: &[Vec<Complex64>], sigma: &[Vec<f64>]) -> f64 {
     let (mut s, mut n) = (0.0, 0usize);
     for (d, sg) in delta.iter().zip(sigma) {
-        for (d, sg) in d.iter().zip(sg) {
+        for (d, sg) in d.iter().zip(sg).filter(|(_, sg)| sg.is_finite()) {
             s += d.norm_sqr() / (sg * sg);
             n += 1;
         }

@@ -725,10 +725,10 @@ fn the_world_judges_a_sweep_by_the_noise_its_recordings_show() {
     let (plant, r) = (&p.ctx.nominal, &p.ctx.reference);
     let level = 1;
     let (u, _) = p.design.generate(r.levels_rms_nm[level]);
-    let runs = |seeds: std::ops::Range<u64>| -> Vec<Vec<Complex64>> {
+    let runs_of = |seeds: std::ops::Range<u64>, exact: bool| -> Vec<Vec<Complex64>> {
         seeds
             .map(|seed| {
-                let mut sim = Sim::new(plant, r.fs_hz, 8, seed, false);
+                let mut sim = Sim::new(plant, r.fs_hz, 8, seed, exact);
                 sim.start_centred(&u);
                 let out = sim.run(&u);
                 let y: Vec<f64> = (0..out.len())
@@ -738,13 +738,21 @@ fn the_world_judges_a_sweep_by_the_noise_its_recordings_show() {
             })
             .collect()
     };
-    let own = repeated_sigma_ln(&runs(100..106), &sigma_ln(plant, r)[level]);
-    let check = runs(1000..1008);
+    let exact = runs_of(0..1, true).remove(0);
+    let own = repeated_sigma_ln(
+        &runs_of(100..106, false),
+        &exact,
+        &sigma_ln(plant, r)[level],
+    );
+    let check = runs_of(1000..1008, false);
     let k = check.len() as f64;
     let var: Vec<f64> = (0..r.lines_hz.len())
         .map(|l| {
-            let mean = check.iter().map(|h| h[l]).sum::<Complex64>() / k;
-            check.iter().map(|h| (h[l] - mean).norm_sqr()).sum::<f64>() / (k - 1.0)
+            check
+                .iter()
+                .map(|h| (h[l] - exact[l]).norm_sqr())
+                .sum::<f64>()
+                / k
         })
         .collect();
     let sixths = |sigma: &[f64]| -> Vec<f64> {

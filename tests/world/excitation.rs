@@ -158,33 +158,21 @@ impl Design {
     /// the response on each of `lines_hz` (spaced `line_spacing_hz`) averages: the scatter of
     /// `ln H` there is `sqrt(v / (|H|^2 E))` for a white noise `v` per sample on the reading.
     /// A periodic multisine with line amplitude `A` over `N` samples has `E = N A^2 / 4`; a
-    /// logarithmic sweep spends a time `~ 1/f` per hertz, so its `E` falls as `1/f` (from
+    /// logarithmic sweep spends a time `~ 1/f` per hertz, so its `E` falls as `1/f`: from
     /// the whole record's spectrum, `sum |U_j|^2 / N` over the bins within half a line
-    /// spacing: the `H1` estimate over them); a stepped sine has `periods x P x A^2 / 4`
-    /// at the line nearest each spot and nothing between them (its settle periods are not
-    /// averaged).
+    /// spacing (the `H1` estimate over them). (A stepped sine's energy sits at its spots:
+    /// not modelled here; the world judges it by the reference multisine.)
     pub fn line_energy(&self, rms_nm: f64, lines_hz: &[f64]) -> Vec<f64> {
         let mut e = vec![0.0; lines_hz.len()];
+        if lines_hz.is_empty() {
+            return e;
+        }
         let nearest = |f: f64| {
             let i = lines_hz.partition_point(|&l| l < f);
             [i.saturating_sub(1), i.min(lines_hz.len() - 1)]
                 .into_iter()
                 .min_by(|&a, &b| (lines_hz[a] - f).abs().total_cmp(&(lines_hz[b] - f).abs()))
         };
-        if lines_hz.is_empty() {
-            return e;
-        }
-        if self.kind == Kind::SteppedSine {
-            for b in &self.stepped(rms_nm).blocks {
-                let half = 0.5 * self.line_spacing_hz;
-                if let Some(l) = nearest(b.frequency_hz)
-                    .filter(|&l| (lines_hz[l] - b.frequency_hz).abs() <= half)
-                {
-                    e[l] += (b.periods * b.period_samples) as f64 * b.amplitude_nm.powi(2) / 4.0;
-                }
-            }
-            return e;
-        }
         let (u, _) = self.generate(rms_nm);
         let n = u.len();
         let mut planner = realfft::RealFftPlanner::<f64>::new();

@@ -579,7 +579,13 @@ pub fn measure(plan: Plan, dir: &Path) -> Case {
                     )
                 })
                 .collect();
-            measured_sigma.push(repeated_sigma_ln(&runs, &plan.sigma[i]));
+            // the plant's own response, without noise or quantisation
+            let mut exact = Sim::new(plant, fs, steps, 0, true);
+            exact.start_centred(&u);
+            let y = reading_of(&exact.run(&u), velocity);
+            let lines = &ctx.reference.lines_hz;
+            let exact = ln_h1_lines(&u, &y, lines, fs, plan.design.line_spacing_hz);
+            measured_sigma.push(repeated_sigma_ln(&runs, &exact, &plan.sigma[i]));
         }
         let rec = Recording {
             time_s: (0..u.len()).map(|k| k as f64 / fs).collect(),

@@ -4,7 +4,9 @@
 //! acts.
 //!
 //! The reference measurement is the case's own multisine where it measures with one
-//! (Schroeder, random-phase or odd random-phase; its excited lines), else a random-phase
+//! (Schroeder, random-phase or odd random-phase; its excited lines); for a sweep, the full
+//! grid with the sweep's own energy per line ([`Reference::energy`]; its error then
+//! measured on repeated recordings, [`repeated_sigma_ln`]); else a random-phase
 //! multisine on the full grid of the case's band, at the case's two levels, `periods` steady periods of the case's period. Per
 //! line, the one-sigma scatter of `ln H` is
 //! `s^2 = 4 (v_meas / |H|^2 + s_w^2 |H_w / H|^2) / (N P A^2)`: `v_meas` the white noise of
@@ -232,20 +234,25 @@ pub fn ln_h1_lines(
         .collect()
 }
 
-/// The scatter of `ln H` per line of a non-periodic record (a sweep) as repeated
+/// The error of `ln H` per line of a non-periodic record (a sweep) as repeated
 /// recordings show it: `runs` holds `ln H` of each (the same command, the noise drawn
-/// anew, [`ln_h1_lines`]); their standard deviation over the model `sigma`, smoothed like
-/// [`measured_sigma_ln`]'s, multiplies the model. Needed where the model's white reading
-/// noise is not what the encoder gives: a motion far below one count at the top of a
-/// sweep quantises into an error that follows the slow motion (a 17-bit sweep scattered
-/// 0.02-0.08 of the model's variance over its top sixth).
-pub fn repeated_sigma_ln(runs: &[Vec<Complex64>], sigma: &[f64]) -> Vec<f64> {
+/// anew, [`ln_h1_lines`]), `exact` the plant's own response without noise or
+/// quantisation; their RMS deviation from it over the model `sigma`, smoothed like
+/// [`measured_sigma_ln`]'s ratio, multiplies the model. Against the exact response rather
+/// than the runs' mean, so that an error the runs share (a quantisation that follows the
+/// same slow motion) counts. Needed where the model's white reading noise is not what
+/// the encoder gives: a slow motion quantises into a sawtooth whose error sits at low
+/// frequencies (a 17-bit sweep's top sixth scattered 0.02-0.08 of the model's variance).
+pub fn repeated_sigma_ln(runs: &[Vec<Complex64>], exact: &[Complex64], sigma: &[f64]) -> Vec<f64> {
     let k = runs.len() as f64;
     let ratio: Vec<f64> = (0..sigma.len())
         .map(|l| {
-            let mean = runs.iter().map(|h| h[l]).sum::<Complex64>() / k;
-            let var = runs.iter().map(|h| (h[l] - mean).norm_sqr()).sum::<f64>() / (k - 1.0);
-            var.sqrt() / sigma[l]
+            let ms = runs
+                .iter()
+                .map(|h| (h[l] - exact[l]).norm_sqr())
+                .sum::<f64>()
+                / k;
+            ms.sqrt() / sigma[l]
         })
         .collect();
     smoothed(&ratio, sigma)

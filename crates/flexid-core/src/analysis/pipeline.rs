@@ -461,7 +461,8 @@ impl Pairs {
 /// `--masses m`: the chain of `m` bodies. With fewer bodies than detected pairs, which
 /// pairs the best reduced chain keeps is not known beforehand (the most prominent pair
 /// need not be the one that explains most of the band), so every choice of `m - 1` pairs
-/// is fitted (at most a few dozen) and the lowest cost wins; with more, the missing pairs
+/// (at most a few dozen) is a start: each screened by one coarse fit ([`screened`]), the
+/// best fitted with all starts, and the lowest cost wins; with more, the missing pairs
 /// start near the top of the band.
 fn fit_given_order(
     analysis: &mut Analysis,
@@ -473,17 +474,26 @@ fn fit_given_order(
     let (j, spectra) = (pairs.j, &pairs.spectra[..pairs.confirmed]);
     let k = m - 1;
     let init = if k < spectra.len() {
-        let inits = combinations(spectra.len(), k, 32)
+        let inits: Vec<Chain> = combinations(spectra.len(), k, 32)
             .into_iter()
             .filter_map(|keep| {
                 let sel: Vec<(f64, f64)> = keep.iter().map(|&i| spectra[i]).collect();
                 exact_chain(j, &sel)
-            });
+            })
+            .collect();
+        let choices = inits.len();
         match fit_lowest_cost(analysis.fitted_frf(), inits, m, fit_opts, opts) {
             Some(Ok(f)) => {
+                let how = if choices > SCREENED {
+                    format!(
+                        "screened by one coarse fit, the best {SCREENED} fitted from every start"
+                    )
+                } else {
+                    "fitted".to_string()
+                };
                 analysis.notes.push(format!(
-                    "{m} bodies asked for, {} pairs detected: every choice of {k} pairs was fitted and the best kept",
-                    spectra.len()
+                    "{m} bodies asked for, {} pairs detected: every choice of {k} pairs ({choices}) was {how} and the best kept",
+                    spectra.len(),
                 ));
                 return Ok(f);
             }

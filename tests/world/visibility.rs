@@ -183,6 +183,15 @@ pub fn measured_sigma_ln(
     smoothed(&ratio, sigma)
 }
 
+/// The spectrum of `x` by the planned real FFT `fft` (of `x`'s length).
+pub fn spectrum_by(fft: &dyn realfft::RealToComplex<f64>, x: &[f64]) -> Vec<Complex64> {
+    let mut input = x.to_vec();
+    let mut out = fft.make_output_vec();
+    fft.process(&mut input, &mut out)
+        .expect("an FFT of the planned length");
+    out
+}
+
 /// The model `sigma` times the measured-to-model `ratio` smoothed over 9 neighbouring
 /// lines (their median: one realisation's chance does not count; the model keeps its
 /// shape across resonances).
@@ -210,14 +219,7 @@ pub fn ln_h1_lines(
     let n = u.len();
     let mut planner = RealFftPlanner::<f64>::new();
     let fft = planner.plan_fft_forward(n);
-    let spectrum = |x: &[f64]| {
-        let mut input = x.to_vec();
-        let mut out = fft.make_output_vec();
-        fft.process(&mut input, &mut out)
-            .expect("an FFT of the record");
-        out
-    };
-    let (uf, yf) = (spectrum(u), spectrum(y));
+    let (uf, yf) = (spectrum_by(fft.as_ref(), u), spectrum_by(fft.as_ref(), y));
     let half = 0.5 * spacing_hz;
     lines_hz
         .iter()
@@ -300,13 +302,7 @@ pub fn simulated_response(plant: &Plant, r: &Reference, peaks: &Peaks) -> Simula
     let steps = substeps(plant, r.fs_hz, peaks);
     let mut planner = RealFftPlanner::<f64>::new();
     let fft = planner.plan_fft_forward(n);
-    let spectrum = |x: &[f64]| {
-        let mut inp = x.to_vec();
-        let mut out = fft.make_output_vec();
-        fft.process(&mut inp, &mut out)
-            .expect("an FFT of the period");
-        out
-    };
+    let spectrum = |x: &[f64]| spectrum_by(fft.as_ref(), x);
     let mut change = Vec::new();
     let response = (0..r.levels_rms_nm.len())
         .map(|i| {

@@ -76,6 +76,10 @@ pub struct Knob {
     /// Everything drawn for this case but the size.
     pub shape: serde_json::Value,
     apply: Apply,
+    /// The nominal chain a nominal model would make of the effect, where its physics says
+    /// so (an extra body merged into the one it hangs on): a further start of the world's
+    /// refit ([`super::visibility::Projector::residual_from`]).
+    absorb: Option<Apply>,
 }
 
 impl Knob {
@@ -100,7 +104,20 @@ impl Knob {
             linear,
             shape,
             apply,
+            absorb: None,
         }
+    }
+
+    /// With `absorb`, the nominal chain a nominal model would make of the effect.
+    pub fn absorbed_as(mut self, absorb: Apply) -> Knob {
+        self.absorb = Some(absorb);
+        self
+    }
+
+    /// The nominal chain `plant` moved as a nominal model would absorb the effect at
+    /// `size`; false (and `plant` unchanged) where the effect names no such chain.
+    pub fn absorbed(&self, plant: &mut Plant, size: f64) -> bool {
+        self.absorb.as_ref().map(|a| a(plant, size)).is_some()
     }
 
     /// With the typical sizes `[lo, hi]`.
@@ -296,6 +313,8 @@ pub fn effect(class: &str, ctx: &Context, rng: &mut impl Rng) -> Knob {
                 }),
             )
             .typical(0.3, 1.0)
+            // below its pair, the extra body moves with the load
+            .absorbed_as(Box::new(move |p, s| p.inertia_kgm2[b] += s * jl))
         }
         "gravity" => {
             // the load swings; the size is m g l against the total inertia at the lowest

@@ -241,29 +241,44 @@ impl<'a> Judge<'a> {
     /// Visibility beyond the nominal model (what no re-fitted nominal chain absorbs; for a
     /// cause `outside` the library, nor what a library delay or ground spring mimics), and
     /// against the true nominal chain; `None` when the response is not periodic.
-    fn visibility(&self, plant: &Plant, linear: bool, outside: bool) -> Option<(f64, f64)> {
+    /// `starts`: further starts of the refit ([`Judge::residual`]).
+    fn visibility(
+        &self,
+        plant: &Plant,
+        linear: bool,
+        outside: bool,
+        starts: &[Plant],
+    ) -> Option<(f64, f64)> {
         self.delta(plant, linear)
-            .map(|d| self.visibility_of(&d, outside))
+            .map(|d| self.visibility_of(&d, outside, starts))
     }
 
-    fn visibility_of(&self, delta: &[Vec<flexid::Complex64>], outside: bool) -> (f64, f64) {
+    fn visibility_of(
+        &self,
+        delta: &[Vec<flexid::Complex64>],
+        outside: bool,
+        starts: &[Plant],
+    ) -> (f64, f64) {
         (
-            visibility(&self.residual(delta, outside), &self.sigma),
+            visibility(&self.residual(delta, outside, starts), &self.sigma),
             visibility(delta, &self.sigma),
         )
     }
 
     /// What is left of `delta` beyond the nominal model (and, for a cause `outside` the
-    /// library, beyond a library delay and ground spring).
+    /// library, beyond a library delay and ground spring), the refit also started from
+    /// each of `starts` (the chains the effects' physics say a nominal model makes of them:
+    /// [`super::effects::Knob::absorbed`]).
     fn residual(
         &self,
         delta: &[Vec<flexid::Complex64>],
         outside: bool,
+        starts: &[Plant],
     ) -> Vec<Vec<flexid::Complex64>> {
         if outside {
-            self.beyond_library.residual(delta)
+            self.beyond_library.residual_from(delta, starts)
         } else {
-            self.projector.residual(delta)
+            self.projector.residual_from(delta, starts)
         }
     }
 
@@ -276,13 +291,34 @@ impl<'a> Judge<'a> {
 /// The full size of `knob` alone on the nominal axis: a typical size `drawn`, enlarged
 /// until its visibility beyond the nominal model reaches `target` where it falls short.
 /// Returns the size, its visibility, and the drawn size's visibility.
+/// The nominal chain a nominal model makes of `effects` (each knob at its size) as their
+/// physics says ([`Knob::absorbed`]): one start for the world's refit, or none where no
+/// effect names such a chain.
+fn absorbed(nominal: &Plant, effects: &[(&Knob, f64)]) -> Vec<Plant> {
+    let mut chain = nominal.clone();
+    let mut any = false;
+    for (k, size) in effects {
+        any |= k.absorbed(&mut chain, *size);
+    }
+    if any {
+        vec![chain]
+    } else {
+        vec![]
+    }
+}
+
 fn full_size(knob: &Knob, judge: &Judge, drawn: f64, target: f64) -> (f64, f64, f64) {
     let vis = |s: f64| {
         let mut p = judge.ctx.nominal.clone();
         knob.apply(&mut p, s);
         // a size whose response is not periodic is too large
         judge
-            .visibility(&p, knob.linear, knob.answer == "unexplained")
+            .visibility(
+                &p,
+                knob.linear,
+                knob.answer == "unexplained",
+                &absorbed(&judge.ctx.nominal, &[(knob, s)]),
+            )
             .map_or(f64::MAX, |v| v.0)
     };
     let v_drawn = vis(drawn);
@@ -419,9 +455,10 @@ fn plan_at(spec: &Spec, level_scale: f64) -> Plan {
         };
         let mut p = ctx.nominal.clone();
         k.apply(&mut p, size);
-        let residual = judge
-            .delta(&p, k.linear)
-            .map(|d| (judge.residual(&d, k.answer == "unexplained"), d));
+        let residual = judge.delta(&p, k.linear).map(|d| {
+            let starts = absorbed(&ctx.nominal, &[(k, size)]);
+            (judge.residual(&d, k.answer == "unexplained", &starts), d)
+        });
         let (v, v_true) = residual.as_ref().map_or((f64::MAX, f64::MAX), |(r, d)| {
             (visibility(r, &judge.sigma), visibility(d, &judge.sigma))
         });
@@ -452,7 +489,13 @@ fn plan_at(spec: &Spec, level_scale: f64) -> Plan {
                 let band = (spec.group == Group::D)
                     .then(|| acting_band(&delta, &ctx.reference.lines_hz))
                     .flatten();
-                (judge.visibility_of(&delta, spec.group == Group::D), band)
+                let applied: Vec<(&Knob, f64)> =
+                    knobs.iter().zip(&sizes).map(|(k, s)| (k, s.size)).collect();
+                let starts = absorbed(&ctx.nominal, &applied);
+                (
+                    judge.visibility_of(&delta, spec.group == Group::D, &starts),
+                    band,
+                )
             }
             None => ((f64::MAX, f64::MAX), None),
         }

@@ -588,6 +588,27 @@ impl Projector {
         p
     }
 
+    /// The parameters `x` of `chain` (of the nominal's bodies) relative to the nominal.
+    fn x_of(&self, params: &[Param], chain: &Plant) -> Vec<f64> {
+        let n = &self.nominal;
+        params
+            .iter()
+            .map(|what| match *what {
+                Param::Inertia(i) => (chain.inertia_kgm2[i] / n.inertia_kgm2[i]).ln(),
+                Param::Stiffness(k) => (chain.couplings[k].stiffness_nm_per_rad
+                    / n.couplings[k].stiffness_nm_per_rad)
+                    .ln(),
+                Param::Damping(k) => (chain.couplings[k].damping_nms_per_rad
+                    / n.couplings[k].damping_nms_per_rad)
+                    .ln(),
+                Param::GroundDamper => {
+                    (chain.motor_viscous_nms_per_rad - n.motor_viscous_nms_per_rad) / self.b_step
+                }
+                Param::Delay | Param::GroundSpring => 0.0,
+            })
+            .collect()
+    }
+
     fn response(&self, plant: &Plant) -> Vec<Complex64> {
         self.lines_hz
             .iter()
@@ -625,6 +646,14 @@ impl Projector {
     /// in another basin when a lightly damped resonance has moved by more than its width;
     /// the better of the two is kept.
     pub fn residual(&self, delta: &[Vec<Complex64>]) -> Vec<Vec<Complex64>> {
+        self.residual_from(delta, &[])
+    }
+
+    /// [`Projector::residual`] with the refit also started from each of `starts` (nominal
+    /// chains of the same bodies: what the cause's own physics suggests a nominal model
+    /// would make of it, such as an extra body merged into the one it hangs on); the best
+    /// refit is kept.
+    pub fn residual_from(&self, delta: &[Vec<Complex64>], starts: &[Plant]) -> Vec<Vec<Complex64>> {
         let params = self.params();
         // the phase unwrapped along the lines, so that a fraction of the change is a
         // fraction of a moving resonance's phase turn
@@ -642,7 +671,13 @@ impl Projector {
                 .collect()
         };
         let target = target_of(1.0);
-        let (_, direct, direct_cost) = self.refit(&params, &target, start.clone(), 100);
+        let (_, mut direct, mut direct_cost) = self.refit(&params, &target, start.clone(), 100);
+        for chain in starts {
+            let (_, r, c) = self.refit(&params, &target, self.x_of(&params, chain), 100);
+            if c < direct_cost {
+                (direct, direct_cost) = (r, c);
+            }
+        }
         if visibility(&direct, &self.sigma) < detectable(&self.sigma) {
             // below what a diagnosis can see: another path cannot change the answer
             return direct;

@@ -994,7 +994,7 @@ fn diagnose_from(
         effects.clear();
     }
     // a set of linear effects cannot explain an FRF that changes between levels
-    if level_change::linear_set_misses(&effects, &residual, &mut notes) {
+    if level_change::linear_set_misses(data, &nominal, &effects, &residual, &mut notes) {
         effects.clear();
     }
     let mut verdict = match effects.first() {

@@ -196,12 +196,17 @@ fn estimate_response(
             noise_var: None,
         }
     } else if let Some(info) = single_sweep(rec) {
+        // an encoder's count error follows the sweep: not in the windows' residual
+        let floor = resp.quantum.map_or(0.0, |(q, _)| q * q / 12.0);
+        let count_words = resp.quantum.map_or(String::new(), |(q, _)| {
+            format!("; the motion lies on a grid of {q:.4e} (an encoder count), whose error's level q^2/12 is added to each line's variance")
+        });
         // the user's band first, else the sweep's own
-        let frf = frf::estimate_lpm(u, y, fs, kind, band_hz.or(info.band_hz))?;
+        let frf = frf::estimate_lpm_with_floor(u, y, fs, kind, band_hz.or(info.band_hz), floor)?;
         let q = frf::lpm_dof();
         let width = 2 * frf::lpm::HALF_WIDTH + 1;
         let choices = format!(
-            "FRF: local polynomial method on the whole sweep ({} samples, {:.1} s, no window; {:.4} Hz DFT lines): in each window of {width} lines the response and the transient are polynomials of degree {}, one estimate per window ({:.4} Hz apart) with the noise variance from the fit's residual ({q} complex degrees of freedom){}",
+            "FRF: local polynomial method on the whole sweep ({} samples, {:.1} s, no window; {:.4} Hz DFT lines): in each window of {width} lines the response and the transient are polynomials of degree {}, one estimate per window ({:.4} Hz apart) with the noise variance from the fit's residual ({q} complex degrees of freedom){count_words}{}",
             u.len(),
             u.len() as f64 / fs,
             fs / u.len() as f64,

@@ -41,7 +41,7 @@ mod velocity;
 mod welch;
 
 pub use error::FrfError;
-pub use lpm::{estimate_lpm, lpm_dof};
+pub use lpm::{estimate_lpm, estimate_lpm_with_floor, lpm_dof};
 pub use periodic::{
     estimate_periodic, NonExcitedLevels, PeriodicEstimator, DEFAULT_INFER_THRESHOLD,
 };

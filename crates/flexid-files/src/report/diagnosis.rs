@@ -65,10 +65,10 @@ pub fn render(d: &Diagnosis) -> String {
     }
     let _ = writeln!(
         s,
-        "gap (systematic RMS log-complex, noise removed, 1 rad of phase = 8.69 dB): before {:.3} dB, after {:.3} dB ({:.1}x)\n  plain RMS incl. noise {:.3} -> {:.3} dB; noise alone {:.3} dB",
+        "gap (systematic RMS log-complex, noise removed, 1 rad of phase = 8.69 dB): before {:.3} dB, after {:.3} dB ({})\n  plain RMS incl. noise {:.3} -> {:.3} dB; noise alone {:.3} dB",
         g.before_rms_db,
         g.after_rms_db,
-        g.before_rms_db / g.after_rms_db.max(1e-12),
+        shrink_words(g.before_rms_db, g.after_rms_db),
         g.before_raw_rms_db,
         g.after_raw_rms_db,
         g.noise_rms_db
@@ -288,5 +288,27 @@ fn amplitude_mode(s: &mut String, a: &flexid_core::diagnose::amplitude_mode::Amp
                 }
             }
         }
+    }
+}
+
+/// How far the gap shrank, as a factor; where nothing is left beyond the noise at the
+/// printed precision (0.000 dB), that, not a factor of 1e11.
+fn shrink_words(before_db: f64, after_db: f64) -> String {
+    if after_db < 5e-4 {
+        "nothing left beyond the noise".into()
+    } else {
+        format!("{:.1}x", before_db / after_db)
+    }
+}
+
+#[cfg(test)]
+mod shrink_tests {
+    use super::shrink_words;
+
+    #[test]
+    fn a_gap_removed_to_the_noise_is_said_so_not_as_a_huge_factor() {
+        assert_eq!(shrink_words(0.698, 1e-12), "nothing left beyond the noise");
+        assert_eq!(shrink_words(0.698, 0.0), "nothing left beyond the noise");
+        assert_eq!(shrink_words(0.70, 0.35), "2.0x");
     }
 }

@@ -45,6 +45,15 @@ pub fn periodic_excitation(rec: &Recording) -> Option<&crate::excitation::Excita
     })
 }
 
+/// Whether the estimator reads a steady state of a periodic excitation (a periodic
+/// multisine after its transient periods, or stepped-sine blocks after their settle
+/// periods): a noise-free linear simulation's estimate is then the exact response at its
+/// lines. A sweep's local polynomial and a Welch estimate are not (the window's bias at a
+/// narrow resonance, the record's start and end).
+pub fn reads_steady_state(rec: &Recording) -> bool {
+    periodic_excitation(rec).is_some() || stepped_blocks(rec).is_some()
+}
+
 /// The description of a recording that is one swept sine (not periodic).
 fn single_sweep(rec: &Recording) -> Option<&crate::excitation::ExcitationInfo> {
     rec.sidecar

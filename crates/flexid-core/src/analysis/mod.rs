@@ -18,8 +18,8 @@ mod tests_sparse_lines;
 mod tests_support;
 
 pub use estimate::{
-    estimate_frf, estimate_motion, estimate_torque_path, periodic_excitation, EstimatedFrf,
-    ResponseEstimate,
+    estimate_frf, estimate_motion, estimate_torque_path, periodic_excitation, reads_steady_state,
+    EstimatedFrf, ResponseEstimate,
 };
 pub use json::to_json;
 pub use pipeline::{

@@ -53,7 +53,10 @@ pub fn sim_model_steady(
     let exact = super::effects::model_on(lin, data.fs, data.kind, &data.full_targets);
     for ((m, a), e) in with.iter_mut().zip(&without).zip(&exact) {
         for ((m, a), e) in m.iter_mut().zip(a).zip(e) {
-            *m *= e / a;
+            // a line the linear simulation does not reach keeps the simulation's value
+            if a.norm_sqr() > 0.0 {
+                *m *= e / a;
+            }
         }
     }
     Some(with)

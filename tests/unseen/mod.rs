@@ -10,7 +10,7 @@ use flexid::excitation::{AmplitudeShape, ExcitationInfo, MultisineDesign, PhaseD
 use flexid::model::Chain;
 use flexid::plant::{run, Effects, PlantSim, PlantSpec};
 use flexid::plot::BodePlot;
-use flexid::recording::{Recording, Sidecar};
+use flexid::recording::Recording;
 use flexid::report::render_report;
 use rand::{Rng, SeedableRng};
 use rand_distr::{Distribution, Normal};
@@ -320,18 +320,5 @@ pub fn position_recording(
     pos: Vec<f64>,
     info: Option<ExcitationInfo>,
 ) -> Recording {
-    Recording {
-        time_s: (0..torque.len()).map(|k| k as f64 / fs).collect(),
-        torque_cmd_nm: torque,
-        position_rad: Some(pos),
-        velocity_rad_s: None,
-        acceleration_rad_s2: None,
-        torque_actual_nm: None,
-        sample_rate_hz: fs,
-        sidecar: Sidecar {
-            sample_rate_hz: Some(fs),
-            excitation: info,
-            ..Sidecar::default()
-        },
-    }
+    Recording::of_position(fs, torque, pos, info)
 }

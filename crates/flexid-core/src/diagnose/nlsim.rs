@@ -1036,7 +1036,6 @@ mod tests {
     /// whose motor viscous friction lets the rigid body settle in 0.06 s.
     fn stepped_recording(periods: usize, settle: usize) -> (Recording, LinExt) {
         use crate::excitation::SteppedSineDesign;
-        use crate::recording::Sidecar;
         let fs = 1000.0;
         let stepped = SteppedSineDesign {
             sample_rate_hz: fs,
@@ -1050,19 +1049,12 @@ mod tests {
         .generate()
         .unwrap();
         let n = stepped.signal.len();
-        let rec = Recording {
-            time_s: (0..n).map(|k| k as f64 / fs).collect(),
-            torque_cmd_nm: stepped.signal.clone(),
-            position_rad: Some(vec![0.0; n]),
-            velocity_rad_s: None,
-            acceleration_rad_s2: None,
-            torque_actual_nm: None,
-            sample_rate_hz: fs,
-            sidecar: Sidecar {
-                excitation: Some(stepped.info()),
-                ..Sidecar::default()
-            },
-        };
+        let rec = Recording::of_position(
+            fs,
+            stepped.signal.clone(),
+            vec![0.0; n],
+            Some(stepped.info()),
+        );
         let chain = Chain::new(vec![1e-3, 2e-3], vec![400.0], vec![0.05]).unwrap();
         let mut lin = LinExt::nominal(chain);
         lin.motor_b = 0.05;

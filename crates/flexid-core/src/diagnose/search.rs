@@ -833,7 +833,7 @@ mod tests {
     use crate::diagnose::{prepare, DiagnoseOptions};
     use crate::excitation::ChirpDesign;
     use crate::model::Chain;
-    use crate::recording::{Recording, Sidecar};
+    use crate::recording::Recording;
 
     /// A single log sweep (1 kHz, 2-300 Hz, 8 s) on a 2-mass chain with a resonance of 1 %
     /// damping near 80 Hz, narrower than the local polynomial's window: recorded exactly (no
@@ -848,20 +848,7 @@ mod tests {
         lin.motor_b = 0.01;
         let u = chirp.signal.clone();
         let pos = simulate(&lin, Nl::None, &u, fs, 1).pos;
-        let n = u.len();
-        let rec = Recording {
-            time_s: (0..n).map(|k| k as f64 / fs).collect(),
-            torque_cmd_nm: u,
-            position_rad: Some(pos),
-            velocity_rad_s: None,
-            acceleration_rad_s2: None,
-            torque_actual_nm: None,
-            sample_rate_hz: fs,
-            sidecar: Sidecar {
-                excitation: Some(chirp.info()),
-                ..Sidecar::default()
-            },
-        };
+        let rec = Recording::of_position(fs, u, pos, Some(chirp.info()));
         let opts = DiagnoseOptions {
             masses: 2,
             ..DiagnoseOptions::default()

@@ -201,6 +201,33 @@ pub struct Recording {
 }
 
 impl Recording {
+    /// A recording of the torque command and the motor position [rad] at
+    /// `sample_rate_hz`, sampled from `t = 0`, with the excitation's description (no
+    /// velocity, acceleration or torque reading).
+    pub fn of_position(
+        sample_rate_hz: f64,
+        torque_cmd_nm: Vec<f64>,
+        position_rad: Vec<f64>,
+        excitation: Option<crate::excitation::ExcitationInfo>,
+    ) -> Recording {
+        Recording {
+            time_s: (0..torque_cmd_nm.len())
+                .map(|k| k as f64 / sample_rate_hz)
+                .collect(),
+            torque_cmd_nm,
+            position_rad: Some(position_rad),
+            velocity_rad_s: None,
+            acceleration_rad_s2: None,
+            torque_actual_nm: None,
+            sample_rate_hz,
+            sidecar: Sidecar {
+                sample_rate_hz: Some(sample_rate_hz),
+                excitation,
+                ..Sidecar::default()
+            },
+        }
+    }
+
     /// Number of samples.
     pub fn len(&self) -> usize {
         self.torque_cmd_nm.len()

@@ -199,7 +199,7 @@ pub fn case_line(o: &Outcome) -> String {
     let measured: Vec<String> = t
         .sizes
         .iter()
-        .filter_map(|z| z.visibility_measured.map(|v| format!("{v:.1}")))
+        .filter_map(|z| z.visibility_measured.map(visibility_text))
         .collect();
     if !measured.is_empty() {
         let _ = write!(s, " (vis by the records' scatter {})", measured.join(", "));

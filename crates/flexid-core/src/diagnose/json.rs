@@ -28,6 +28,13 @@ fn lin_json(l: &super::lti::LinExt) -> Value {
     })
 }
 
+/// A parameter: `name`, `value`, `std` (null: not computed) and `identifiable` (false
+/// where the uncertainty exceeds the value: a number not to be read as an estimate; null
+/// where no uncertainty was computed).
+fn param_json(p: &super::effects::Param) -> Value {
+    json!({"name": p.name, "value": num(p.value), "std": num(p.std), "identifiable": p.identifiable()})
+}
+
 pub fn to_json(d: &Diagnosis) -> Value {
     let mut v = body_json(d);
     v["time_cap"] = time_cap_json(&d.time_cap);
@@ -50,7 +57,7 @@ fn body_json(d: &Diagnosis) -> Value {
         "verdict": d.verdict,
         "effects": d.effects.iter().map(|s| json!({
             "effect": s.effect, "after_rms_db": num(s.after_rms_db), "score": num(s.score),
-            "params": s.fit.params.iter().map(|p| json!({"name": p.name, "value": num(p.value), "std": num(p.std)})).collect::<Vec<_>>(),
+            "params": s.fit.params.iter().map(param_json).collect::<Vec<_>>(),
             "model": lin_json(&s.fit.lin),
         })).collect::<Vec<_>>(),
         "masses": d.masses,
@@ -79,9 +86,9 @@ fn body_json(d: &Diagnosis) -> Value {
             "effect": r.effect, "after_rms_db": num(r.after_rms_db), "score": num(r.score),
             "converged": rank::nominal_chi2(&d.ranking).is_none_or(|n| r.converged(n)),
             "chi2": num(r.chi2), "added_params": r.added_params,
-            "params": r.params.iter().map(|p| json!({"name": p.name, "value": num(p.value), "std": num(p.std)})).collect::<Vec<_>>(),
+            "params": r.params.iter().map(param_json).collect::<Vec<_>>(),
         })).collect::<Vec<_>>(),
-        "effect_params": d.winner.as_ref().map(|w| w.params.iter().map(|p| json!({"name": p.name, "value": num(p.value), "std": num(p.std)})).collect::<Vec<_>>()),
+        "effect_params": d.winner.as_ref().map(|w| w.params.iter().map(param_json).collect::<Vec<_>>()),
         "residual": {
             "reduced_chi2": num(d.residual.reduced_chi2),
             "within_noise": d.residual.within_noise,
@@ -257,4 +264,23 @@ fn located_json(w: super::Located) -> Value {
         "p_noise_per_run": num(w.window.p), "runs_tried": w.window.tests,
         "significant": w.window.significant,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::param_json;
+    use crate::diagnose::effects::Param;
+
+    #[test]
+    fn a_parameter_the_data_do_not_fix_is_marked_so() {
+        let p = |value: f64, std: f64| Param {
+            name: "delay_s".into(),
+            value,
+            std,
+        };
+        assert_eq!(param_json(&p(0.0, 50.0))["identifiable"], false);
+        assert_eq!(param_json(&p(1e-3, 1e-5))["identifiable"], true);
+        let none = param_json(&p(1e-3, f64::NAN));
+        assert!(none["identifiable"].is_null() && none["std"].is_null());
+    }
 }

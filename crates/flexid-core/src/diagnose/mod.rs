@@ -96,9 +96,11 @@ pub struct DiagnoseOptions {
     pub masses: usize,
     /// Analysis band [Hz] (default: the excited band).
     pub band_hz: Option<[f64; 2]>,
-    /// Sub-steps per sample of the time-domain simulation of amplitude-dependent effects.
+    /// Sub-steps per sample of the time-domain simulation of amplitude-dependent effects,
+    /// at most: never finer than [`FINEST_SUBSTEP_HZ`] ([`substeps_at`]).
     pub substeps: usize,
-    /// Sub-steps per sample for the spring nonlinearities (backlash, hardening).
+    /// Sub-steps per sample for the spring nonlinearities (backlash, hardening), at most
+    /// (as `substeps`).
     pub spring_substeps: usize,
     /// Fit lines per level used by the joint linear refits (all lines are scored).
     pub fit_lines: usize,
@@ -380,11 +382,30 @@ pub fn prepare(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Data, Diagn
         fs,
         kind,
         band: opts.band_hz,
-        substeps: opts.substeps,
-        spring_substeps: opts.spring_substeps,
+        substeps: substeps_at(opts.substeps, fs),
+        spring_substeps: substeps_at(opts.spring_substeps, fs),
         targets,
         full_targets,
     })
+}
+
+/// The finest sub-step rate of the effects' simulation [Hz]: the default 4 sub-steps per
+/// sample at 2 kHz. The sub-steps hold the effect's torque while the chain moves (the
+/// linear part is exact, ZOH, at any step), so their error is set by the chain's
+/// frequencies against the sub-step's length, not by the sample rate: at 4 kHz, 4
+/// sub-steps a sample were twice the resolution the same chain had at 2 kHz, and 4 kHz
+/// stepped sines were the slowest diagnoses (the time loop 75 % of them).
+pub const FINEST_SUBSTEP_HZ: f64 = 8000.0;
+
+/// Sub-steps per sample at `fs` [Hz]: `per_sample` at most, and no finer than
+/// [`FINEST_SUBSTEP_HZ`] (at least one).
+pub fn substeps_at(per_sample: usize, fs: f64) -> usize {
+    let finest = (FINEST_SUBSTEP_HZ / fs).ceil();
+    if finest.is_finite() && finest >= 1.0 {
+        per_sample.min(finest as usize).max(1)
+    } else {
+        per_sample.max(1)
+    }
 }
 
 /// The gap in numbers.

@@ -199,18 +199,7 @@ pub fn render(d: &Diagnosis) -> String {
             );
             continue;
         }
-        let ps: Vec<String> = k
-            .params
-            .iter()
-            .map(|p| {
-                // an uncertainty that was not computed is said so, never printed as NaN
-                if p.std.is_finite() {
-                    format!("{} = {:.4e} +- {:.1e}", p.name, p.value, p.std)
-                } else {
-                    format!("{} = {:.4e} (uncertainty not computed)", p.name, p.value)
-                }
-            })
-            .collect();
+        let ps: Vec<String> = k.params.iter().map(param_text).collect();
         let _ = writeln!(
             s,
             "  {:20} after {:8.3} dB  score {:12.1}  {}",
@@ -225,6 +214,24 @@ pub fn render(d: &Diagnosis) -> String {
     }
     let _ = writeln!(s, "({:.2} s)", d.seconds);
     s
+}
+
+/// A candidate's parameter: `value +- std`; an uncertainty that was not computed is said
+/// so, never printed as NaN; one larger than the value says the data do not fix the
+/// parameter (a current loop's bandwidth of 6e12 Hz +- 3e21, a delay of 0 +- 50 s: the
+/// fit ran to where the cost no longer changes), so no number is printed as if it were an
+/// estimate.
+fn param_text(p: &flexid_core::diagnose::effects::Param) -> String {
+    match p.identifiable() {
+        None => format!("{} = {:.4e} (uncertainty not computed)", p.name, p.value),
+        Some(true) if p.std == 0.0 => format!("{} = {:.4e}", p.name, p.value),
+        Some(true) => format!("{} = {:.4e} +- {:.1e}", p.name, p.value, p.std),
+        Some(false) => format!(
+            "{}: {} (uncertainty larger than the value)",
+            p.name,
+            super::analysis::NOT_IDENTIFIABLE
+        ),
+    }
 }
 
 /// The modes of the band where the FRF changes between levels, per level, and what
@@ -310,5 +317,36 @@ mod shrink_tests {
         assert_eq!(shrink_words(0.698, 1e-12), "nothing left beyond the noise");
         assert_eq!(shrink_words(0.698, 0.0), "nothing left beyond the noise");
         assert_eq!(shrink_words(0.70, 0.35), "2.0x");
+    }
+}
+
+#[cfg(test)]
+mod param_tests {
+    use super::param_text;
+    use flexid_core::diagnose::effects::Param;
+
+    fn p(value: f64, std: f64) -> Param {
+        Param {
+            name: "bandwidth_3db_hz".into(),
+            value,
+            std,
+        }
+    }
+
+    #[test]
+    fn a_parameter_the_data_do_not_fix_prints_no_number() {
+        // where the fit ran off to (a loop at 6e12 Hz +- 3e21): said, not printed
+        let t = param_text(&p(5.6591e12, 3.2e21));
+        assert!(t.contains("not identifiable"), "{t}");
+        assert!(!t.contains("e12") && !t.contains("e21"), "{t}");
+        // a delay of zero +- 50 s alike
+        assert!(param_text(&p(0.0, 50.0)).contains("not identifiable"));
+        // an estimate keeps its number and uncertainty; none computed is said so
+        assert_eq!(
+            param_text(&p(412.0, 3.5)),
+            "bandwidth_3db_hz = 4.1200e2 +- 3.5e0"
+        );
+        assert!(param_text(&p(412.0, f64::NAN)).contains("uncertainty not computed"));
+        assert_eq!(param_text(&p(1.0, 0.0)), "bandwidth_3db_hz = 1.0000e0");
     }
 }

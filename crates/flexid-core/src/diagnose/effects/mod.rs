@@ -47,6 +47,16 @@ pub struct EffectFit {
     pub lin: LinExt,
 }
 
+impl Param {
+    /// Whether the data fix the parameter: its one-sigma uncertainty is at most the
+    /// value's magnitude (a relative uncertainty above 100 % says nothing but that the fit
+    /// ran to where the cost no longer changes: a current loop's bandwidth of 6e12 Hz
+    /// +- 3e21). `None`: no uncertainty was computed.
+    pub fn identifiable(&self) -> Option<bool> {
+        self.std.is_finite().then(|| self.std <= self.value.abs())
+    }
+}
+
 impl EffectFit {
     pub fn param(name: &str, value: f64, std: f64) -> Param {
         Param {

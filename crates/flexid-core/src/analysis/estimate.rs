@@ -54,8 +54,9 @@ pub fn reads_steady_state(rec: &Recording) -> bool {
     periodic_excitation(rec).is_some() || stepped_blocks(rec).is_some()
 }
 
-/// The description of a recording that is one swept sine (not periodic).
-fn single_sweep(rec: &Recording) -> Option<&crate::excitation::ExcitationInfo> {
+/// The description of a recording that is one swept sine (not periodic): its estimate is
+/// the local polynomial method's ([`frf::estimate_lpm`]).
+pub fn single_sweep(rec: &Recording) -> Option<&crate::excitation::ExcitationInfo> {
     rec.sidecar
         .excitation
         .as_ref()

@@ -19,7 +19,7 @@ mod tests_support;
 
 pub use estimate::{
     estimate_frf, estimate_motion, estimate_torque_path, periodic_excitation, reads_steady_state,
-    EstimatedFrf, ResponseEstimate,
+    single_sweep, EstimatedFrf, ResponseEstimate,
 };
 pub use json::to_json;
 pub use pipeline::{

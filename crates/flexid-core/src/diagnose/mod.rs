@@ -30,6 +30,7 @@ pub mod search;
 pub mod select;
 pub mod shortened;
 pub mod simplex;
+pub mod sweep_plan;
 #[cfg(test)]
 mod tests_support;
 pub mod torque_path;
@@ -161,6 +162,8 @@ pub struct Level {
     /// `rec` cut for the search's short simulations of a stepped sine, once per number of
     /// steady periods.
     pub shortened: shortened::ShortenedCuts,
+    /// The recording's sweep estimator planned for the search's simulations.
+    pub sweep_plan: sweep_plan::SweepPlan,
     /// The FRF of `rec` as [`estimate_frf`] gave it to [`prepare`] (before the realisations'
     /// variances were swapped), and the band it was asked for: the nominal starts identify
     /// from it instead of estimating it again ([`Level::measured`]). `None`: estimate anew.
@@ -364,6 +367,7 @@ pub fn prepare(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Data, Diagn
             averages: e.averages,
             spread_var,
             shortened: Default::default(),
+            sweep_plan: Default::default(),
             measured,
         });
     }

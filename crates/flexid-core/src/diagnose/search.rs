@@ -169,7 +169,11 @@ fn simulated(
             .iter()
             .zip(&recs)
             .zip(outs.iter())
-            .map(|((l, (rec, _)), out)| sim_frf(rec, data.band, &l.keep, out))
+            .map(|((l, (rec, _)), out)| {
+                l.sweep_plan
+                    .sim_frf(rec, data.band, &l.keep, out)
+                    .or_else(|| sim_frf(rec, data.band, &l.keep, out))
+            })
             .collect::<Option<Vec<Vec<Complex64>>>>()
     })
 }

@@ -55,6 +55,7 @@ pub fn exact_data(lin: &LinExt, fs: f64, band_hz: &[f64; 2], lines: usize) -> (D
         averages: 8,
         spread_var: None,
         shortened: Default::default(),
+        sweep_plan: Default::default(),
         measured: None,
     };
     let data = Data {

@@ -178,16 +178,18 @@ fn asymptote_power(kind: FrfKind) -> i32 {
     }
 }
 
-/// `G(k)` and its variance from one window of `2n + 1` lines of `U` and `Y` (centre line
-/// `centre` in the middle), the polynomial taken on `G·(jω)^power`; `None` when the input
-/// is zero or the fit is singular.
-fn window_fit(
-    u: &[Complex64],
-    y: &[Complex64],
-    centre: usize,
-    power: i32,
-    floor_line: f64,
-) -> Option<(Complex64, f64)> {
+/// One window's least squares as far as the input fixes it: the input's scale, the
+/// regressor's rows (one per line of the window) and the inverse of the normal matrix.
+struct WindowSystem {
+    scale: f64,
+    rows: [SVector<Complex64, UNKNOWNS>; 2 * HALF_WIDTH + 1],
+    inv: SMatrix<Complex64, UNKNOWNS, UNKNOWNS>,
+}
+
+/// The least squares of the window of input lines `u` (centre line `centre` in the
+/// middle), the polynomial taken on `G·(jω)^power`; `None` when the input is zero or the
+/// normal matrix singular.
+fn window_system(u: &[Complex64], centre: usize, power: i32) -> Option<WindowSystem> {
     let scale = u.iter().map(|v| v.norm()).fold(0.0_f64, f64::max);
     if !(scale > 0.0 && scale.is_finite()) {
         return None;
@@ -200,8 +202,6 @@ fn window_fit(
         (centre as f64 / line).powi(power)
     };
     let shaped = |i: usize| u[i] / scale * asymptote(i);
-    let mut normal = SMatrix::<Complex64, UNKNOWNS, UNKNOWNS>::zeros();
-    let mut rhs = SVector::<Complex64, UNKNOWNS>::zeros();
     let row = |i: usize| {
         // r in [-1, 1] for conditioning; the constant terms are what is read
         let r = (i as f64 - HALF_WIDTH as f64) / HALF_WIDTH as f64;
@@ -214,22 +214,59 @@ fn window_fit(
         }
         k
     };
-    for (i, yi) in y.iter().enumerate() {
-        let k = row(i);
+    let rows: [SVector<Complex64, UNKNOWNS>; 2 * HALF_WIDTH + 1] = std::array::from_fn(row);
+    let mut normal = SMatrix::<Complex64, UNKNOWNS, UNKNOWNS>::zeros();
+    for k in &rows {
         normal += k.conjugate() * k.transpose();
-        rhs += k.conjugate() * *yi;
     }
     let inv = normal.try_inverse()?;
+    Some(WindowSystem { scale, rows, inv })
+}
+
+/// `G(k)` and its variance from one window of `2n + 1` lines of `U` and `Y` (centre line
+/// `centre` in the middle), the polynomial taken on `G·(jω)^power`; `None` when the input
+/// is zero or the fit is singular.
+fn window_fit(
+    u: &[Complex64],
+    y: &[Complex64],
+    centre: usize,
+    power: i32,
+    floor_line: f64,
+) -> Option<(Complex64, f64)> {
+    let WindowSystem { scale, rows, inv } = window_system(u, centre, power)?;
+    let mut rhs = SVector::<Complex64, UNKNOWNS>::zeros();
+    for (k, yi) in rows.iter().zip(y) {
+        rhs += k.conjugate() * *yi;
+    }
     let theta = inv * rhs;
     let rss: f64 = y
         .iter()
-        .enumerate()
-        .map(|(i, yi)| (yi - row(i).dot(&theta)).norm_sqr())
+        .zip(&rows)
+        .map(|(yi, k)| (yi - k.dot(&theta)).norm_sqr())
         .sum();
     let s2 = rss / lpm_dof() as f64 + floor_line;
     let g = theta[0] / scale;
     let var = s2 * inv[(0, 0)].re / (scale * scale);
     (g.re.is_finite() && g.im.is_finite() && var.is_finite() && var > 0.0).then_some((g, var))
+}
+
+/// The weights `w` of one window (input lines `u`, centre line `centre`, the response of
+/// `kind`) that give its estimate from the response's lines: `G(k) = Σᵢ wᵢ Y(k - n + i)`,
+/// the first row of `(KᴴK)⁻¹ Kᴴ` over the input's scale ([`super::LpmPlan`]); `None` where
+/// [`estimate_lpm`] has no line for any response.
+pub(super) fn window_weights(
+    u: &[Complex64],
+    centre: usize,
+    kind: FrfKind,
+) -> Option<[Complex64; 2 * HALF_WIDTH + 1]> {
+    let WindowSystem { scale, rows, inv } = window_system(u, centre, asymptote_power(kind))?;
+    let w = std::array::from_fn(|i| {
+        (0..UNKNOWNS)
+            .map(|j| inv[(0, j)] * rows[i][j].conj())
+            .sum::<Complex64>()
+            / scale
+    });
+    Some(w)
 }
 
 #[cfg(test)]

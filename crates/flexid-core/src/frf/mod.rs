@@ -14,7 +14,8 @@
 //! * [`estimate_stepped`]: stepped sine, one line per dwell block by the periodic
 //!   estimator.
 //! * [`estimate_lpm`]: one non-periodic record (a single sweep), the local polynomial
-//!   method on the whole record's DFT, with the transient and a noise variance per line.
+//!   method on the whole record's DFT, with the transient and a noise variance per line;
+//!   [`LpmPlan`]: the same estimate planned for many responses to one input.
 //! * [`WelchH1`] / [`welch_h1`]: arbitrary excitation, Welch-averaged H1 with coherence.
 //! * [`differenced_velocity`], [`difference_quotient_response`], [`remove_linear_trend`]:
 //!   turning drifting encoder position into something an FRF can be taken from.
@@ -23,6 +24,7 @@
 
 mod error;
 pub mod lpm;
+mod lpm_plan;
 mod periodic;
 mod plan_cache;
 pub mod quantisation;
@@ -42,6 +44,7 @@ mod welch;
 
 pub use error::FrfError;
 pub use lpm::{estimate_lpm, estimate_lpm_with_floor, lpm_dof};
+pub use lpm_plan::{LpmPlan, LpmScratch};
 pub use periodic::{
     estimate_periodic, NonExcitedLevels, PeriodicEstimator, DEFAULT_INFER_THRESHOLD,
 };

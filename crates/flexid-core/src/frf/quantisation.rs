@@ -102,7 +102,9 @@ pub fn repeating_variance(q: f64, sigma: f64) -> f64 {
         let k2 = f64::from(k * k);
         let term = c / k2 * (-a * k2).exp();
         sum += term;
-        if term < 1e-12 * sum {
+        // every later term is smaller; zero once the damping underflows (a motion of
+        // many counts: without this the loop ran all its terms on zeros)
+        if term < 1e-12 * sum || term == 0.0 {
             break;
         }
     }
@@ -222,11 +224,15 @@ pub fn tone_error_power(q: f64, a: f64, sigma: f64) -> f64 {
     let mut sum = 0.0;
     for k in 1..=20_000u32 {
         let kf = f64::from(k);
+        let damping = (-damp * kf * kf).exp();
+        if damping == 0.0 {
+            // underflowed: this term and every later one are zero (noise of many counts;
+            // without this the loop ran all its terms, Bessel functions and all, on zeros:
+            // 9 % of a stepped sine's diagnosis)
+            break;
+        }
         let j = bessel_j1(2.0 * std::f64::consts::PI * kf * a / q);
-        let term = 2.0 * q * q / (std::f64::consts::PI.powi(2) * kf * kf)
-            * j
-            * j
-            * (-damp * kf * kf).exp();
+        let term = 2.0 * q * q / (std::f64::consts::PI.powi(2) * kf * kf) * j * j * damping;
         sum += term;
         // the terms fall as 1/k³ at least; stop when the rest cannot matter
         if kf > 50.0 && term * kf < 1e-9 * sum {

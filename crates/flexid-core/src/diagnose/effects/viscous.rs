@@ -75,15 +75,17 @@ pub fn nominal_with_viscous(
     // when the chain moves with it.
     let z = ((c0 - c1).max(0.0) / (excess * data.noise.mean)).sqrt();
     let significant = (c0 - c1) / data.noise.mean > lines.ln() && z >= SIGNIFICANT_SIGMA;
-    let words = if std.is_finite() {
+    // a covariance's sigma larger than the value says the chain moves with it, not a
+    // number to print (2.4e-1 +- 2.7e6 beside 22 sigma by the likelihood ratio)
+    let words = if std.is_finite() && std <= m.motor_b.abs() {
         format!(
             "viscous friction motor-ground b = {:.3e} +- {:.1e} N m s/rad ({:.1} sigma by the likelihood ratio; chi2 {:.4e} -> {:.4e})",
             m.motor_b, std, z, c0, c1
         )
     } else {
         format!(
-            "viscous friction motor-ground b = {:.3e} N m s/rad, uncertainty undefined (chi2 {:.4e} -> {:.4e})",
-            m.motor_b, c0, c1
+            "viscous friction motor-ground b = {:.3e} N m s/rad, its covariance's uncertainty undefined or larger than the value ({:.1} sigma by the likelihood ratio; chi2 {:.4e} -> {:.4e})",
+            m.motor_b, z, c0, c1
         )
     };
     let note = if significant {

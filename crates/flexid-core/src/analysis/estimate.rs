@@ -107,13 +107,10 @@ pub fn estimate_motion(
     band_hz: Option<[f64; 2]>,
 ) -> Result<EstimatedFrf, AnalysisError> {
     let fs = rec.sample_rate_hz;
-    let (y, kind) = match motion {
-        MotionSignal::Position => (
-            frf::differenced_velocity(signal, fs),
-            FrfKind::DifferencedVelocity,
-        ),
-        MotionSignal::Velocity => (signal.to_vec(), FrfKind::Velocity),
-        MotionSignal::Acceleration => (signal.to_vec(), FrfKind::Other),
+    let kind = motion_frf_kind(motion);
+    let y = match motion {
+        MotionSignal::Position => frf::differenced_velocity(signal, fs),
+        MotionSignal::Velocity | MotionSignal::Acceleration => signal.to_vec(),
     };
     let response = Response {
         y: &y,
@@ -131,6 +128,17 @@ pub fn estimate_motion(
         choices: r.choices,
         noise_var: r.noise_var,
     })
+}
+
+/// The kind of FRF [`estimate_motion`] takes of a motion: a position is differenced to a
+/// velocity (never `j w` times the DFT of a drifting position), an acceleration is no
+/// kind of motion the chain's asymptote knows.
+pub fn motion_frf_kind(motion: MotionSignal) -> FrfKind {
+    match motion {
+        MotionSignal::Position => FrfKind::DifferencedVelocity,
+        MotionSignal::Velocity => FrfKind::Velocity,
+        MotionSignal::Acceleration => FrfKind::Other,
+    }
 }
 
 /// The drive's torque reading against its command, `T_act / T_cmd`, on the excited lines

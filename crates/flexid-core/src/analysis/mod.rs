@@ -18,8 +18,8 @@ mod tests_sparse_lines;
 mod tests_support;
 
 pub use estimate::{
-    estimate_frf, estimate_motion, estimate_torque_path, periodic_excitation, reads_steady_state,
-    single_sweep, EstimatedFrf, ResponseEstimate,
+    estimate_frf, estimate_motion, estimate_torque_path, motion_frf_kind, periodic_excitation,
+    reads_steady_state, single_sweep, EstimatedFrf, ResponseEstimate,
 };
 pub use json::to_json;
 pub use pipeline::{

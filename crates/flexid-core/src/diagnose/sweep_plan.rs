@@ -7,7 +7,7 @@
 //! (`a_planned_sweep_estimate_is_the_full_one`).
 
 use super::nlsim::SimOut;
-use crate::analysis::single_sweep;
+use crate::analysis::{motion_frf_kind, single_sweep};
 use crate::frf::{differenced_velocity_into, FrfKind, LpmPlan, LpmScratch};
 use crate::recording::{MotionSignal, Recording};
 use num_complex::Complex64;
@@ -36,13 +36,13 @@ thread_local! {
     static SCRATCH: RefCell<(Vec<f64>, LpmScratch)> = RefCell::new(Default::default());
 }
 
-/// The motion a sweep's estimate reads and the kind of its FRF (a position is differenced
-/// to a velocity, as [`crate::analysis::estimate_motion`] does).
+/// The motion a sweep's estimate reads and the kind of its FRF
+/// ([`crate::analysis::motion_frf_kind`]); `None` for an acceleration, which the
+/// simulation does not give.
 fn motion_kind(rec: &Recording) -> Option<(MotionSignal, FrfKind)> {
     match rec.preferred_motion()?.0 {
-        MotionSignal::Position => Some((MotionSignal::Position, FrfKind::DifferencedVelocity)),
-        MotionSignal::Velocity => Some((MotionSignal::Velocity, FrfKind::Velocity)),
         MotionSignal::Acceleration => None,
+        m => Some((m, motion_frf_kind(m))),
     }
 }
 

@@ -124,7 +124,6 @@ pub fn estimate_lpm_with_floor(
     };
     let (su, sy) = (spectrum(u), spectrum(y));
     let df = sample_rate_hz / n as f64;
-    let [lo, hi] = band_hz.unwrap_or([df, sample_rate_hz / 2.0]);
     let mut frf = Frf {
         freq_hz: Vec::new(),
         h: Vec::new(),
@@ -133,39 +132,41 @@ pub fn estimate_lpm_with_floor(
         kind,
         sample_rate_hz,
     };
-    // windows [k - n, k + n] tile the lines from 1 (DC left out) to the last full window
-    let last = su.len() - 1;
-    let mut k = 1 + HALF_WIDTH;
-    while k + HALF_WIDTH <= last {
-        let f = k as f64 * df;
-        if f >= lo && f <= hi {
-            let floor_line = n as f64
-                * super::quantisation::line_variance(
-                    floor_var,
-                    kind,
-                    f,
-                    sample_rate_hz,
-                    1,
-                    1.0.into(),
-                );
-            if let Some((g, var)) = window_fit(
-                &su[k - HALF_WIDTH..=k + HALF_WIDTH],
-                &sy[k - HALF_WIDTH..=k + HALF_WIDTH],
-                k,
-                asymptote_power(kind),
-                floor_line,
-            ) {
-                frf.freq_hz.push(f);
-                frf.h.push(g);
-                frf.var.push(var);
-            }
+    for (k, f) in window_centres(su.len(), df, band_hz.unwrap_or([df, sample_rate_hz / 2.0])) {
+        let floor_line = n as f64
+            * super::quantisation::line_variance(floor_var, kind, f, sample_rate_hz, 1, 1.0.into());
+        if let Some((g, var)) = window_fit(
+            &su[k - HALF_WIDTH..=k + HALF_WIDTH],
+            &sy[k - HALF_WIDTH..=k + HALF_WIDTH],
+            k,
+            asymptote_power(kind),
+            floor_line,
+        ) {
+            frf.freq_hz.push(f);
+            frf.h.push(g);
+            frf.var.push(var);
         }
-        k += width;
     }
     if frf.is_empty() {
         return Err(FrfError::NoExcitedLines);
     }
     Ok(frf)
+}
+
+/// The centre lines `k` of the windows and their frequencies [Hz] in `[lo, hi]`: windows
+/// `[k - n, k + n]` tile a spectrum of `lines` DFT lines `df` [Hz] apart from line 1 (DC
+/// left out) to the last full window, without overlap.
+pub(super) fn window_centres(
+    lines: usize,
+    df: f64,
+    [lo, hi]: [f64; 2],
+) -> impl Iterator<Item = (usize, f64)> {
+    let last = lines.saturating_sub(1);
+    (1 + HALF_WIDTH..)
+        .step_by(2 * HALF_WIDTH + 1)
+        .take_while(move |k| k + HALF_WIDTH <= last)
+        .map(move |k| (k, k as f64 * df))
+        .filter(move |&(_, f)| f >= lo && f <= hi)
 }
 
 /// The power `p` of the high- and low-frequency asymptote `1/(jω)^p` of a mechanical axis's

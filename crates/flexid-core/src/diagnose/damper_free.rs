@@ -25,22 +25,12 @@ pub fn start(
     let top = super::top_level(data);
     let level = &data.levels[top];
     let est: EstimatedFrf = level.measured(band).ok()?;
-    let damping = ground_damping(&est.frf, level.io_delay)?;
-    if damping.b_nms_per_rad < crate::identify::SIGNIFICANT_SIGMA * damping.std_nms_per_rad {
-        return None;
-    }
-    let corrected = EstimatedFrf {
-        frf: without_ground_damper(&est.frf, damping.b_nms_per_rad, level.io_delay),
-        ..est
-    };
     let opts = super::nominal_analysis(n, band, budget);
-    let chain = analyze_estimate(&level.rec, corrected, &opts)
-        .ok()?
-        .fit?
-        .chain;
+    let a = analyze_estimate(&level.rec, est, &opts).ok()?;
+    let b = a.ground_damper.as_ref()?.damping.b_nms_per_rad;
     Some(LinExt {
-        motor_b: damping.b_nms_per_rad,
-        ..LinExt::nominal(chain)
+        motor_b: b,
+        ..LinExt::nominal(a.fit?.chain)
     })
 }
 

@@ -4,9 +4,9 @@
 //! section), correcting the chain in between (a joint linear refit on the measurement with
 //! the simulated effect divided out). Spring nonlinearities ([`fit_spring`]): started from
 //! the effect's describing function on the per-level linear fits, refined by a simplex,
-//! polished by Levenberg-Marquardt with a hybrid Jacobian ([`polish_spring`]).
+//! polished by Levenberg-Marquardt with a hybrid Jacobian ([`polish_fit`]).
 
-use super::effects::{fit_linear, EffectFit, Lin, Param, Target};
+use super::effects::{fit_linear, theta, EffectFit, Lin, Param, Target};
 use super::kept_outputs;
 use super::lti::{Discrete, LinExt};
 use super::nlsim::{sim_frf, simulate, simulate_lanes_into, Nl, Record};
@@ -372,8 +372,10 @@ pub fn fit_nonlinear(
             other => other,
         };
         let c0 = chi2_of(data, &here, make(p));
-        let sim_cols = if free == Lin::Viscous { 1 } else { 0 };
-        let (l, q, _, _) = polish_spring(data, &here, 0, p, &|_, q| make(q), free, sim_cols);
+        // the damper's column (the last of the chain and it) simulated
+        let damper = theta(&here, free).len() - 1;
+        let sim_cols: &[usize] = if free == Lin::Viscous { &[damper] } else { &[] };
+        let (l, q, _, _) = polish_fit(data, &here, 0, p, &|_, q| make(q), free, sim_cols);
         let c1 = chi2_of(data, &l, make(q));
         if c1 < c0 {
             lin = l;
@@ -581,7 +583,7 @@ pub fn describing_solution(
 /// level's fit implies for it); a few `p` around it (the family keeps the reference
 /// level's equivalent stiffness) are simulated, and the best start over all couplings is
 /// refined by a simplex over the coupling's stiffness, damping, the two inertias next to it
-/// and `p`, then the whole chain and `p` polished ([`polish_spring`]). The fit, with the
+/// and `p`, then the whole chain and `p` polished ([`polish_fit`]). The fit, with the
 /// coupling index added as a parameter.
 pub fn fit_spring(
     data: &Data,
@@ -649,7 +651,15 @@ pub fn fit_spring(
     let (_, k, lin, p) = best?;
     let (lin, p, _) = refine_spring(data, &lin, k, p, spring.refine_evals, &make);
     // further polished starts along the valley (larger gaps): the best by the cost
-    let mut best = polish_spring(data, &lin, k, p, &make, Lin::carried_by(&lin), 0);
+    let mut best = polish_fit(
+        data,
+        &lin,
+        k,
+        p,
+        &make,
+        Lin::carried_by(&lin),
+        &spring_cols(&lin, k),
+    );
     for &f in spring.valley_starts {
         let mut l = lin.clone();
         let ch = &mut l.chain;
@@ -657,7 +667,15 @@ pub fn fit_spring(
         ch.damping_nms_per_rad[k] *= f.powf(VALLEY.damping);
         ch.inertia_kgm2[k] *= f.powf(VALLEY.inertia_before);
         ch.inertia_kgm2[k + 1] *= f.powf(VALLEY.inertia_after);
-        let c = polish_spring(data, &l, k, p * f, &make, Lin::carried_by(&l), 0);
+        let c = polish_fit(
+            data,
+            &l,
+            k,
+            p * f,
+            &make,
+            Lin::carried_by(&l),
+            &spring_cols(&l, k),
+        );
         if c.3 < best.3 {
             best = c;
         }
@@ -728,15 +746,23 @@ fn sim_residuals(data: &Data, model: &[Vec<Complex64>]) -> Option<Vec<f64>> {
     Some(r)
 }
 
-/// Iterations of [`polish_spring`] (it stops earlier when a step gains nothing).
+/// The columns of [`polish_fit`]'s Jacobian taken from the simulation for a spring
+/// nonlinearity of coupling `k`: its stiffness (the linear model's column for it holds the
+/// spring at one stiffness, while the nonlinear one's equivalent stiffness moves with the
+/// amplitude).
+fn spring_cols(lin: &LinExt, k: usize) -> [usize; 1] {
+    [lin.chain.masses() + k]
+}
+
+/// Iterations of [`polish_fit`] (it stops earlier when a step gains nothing).
 pub const POLISH_ITERS: usize = 8;
 
-/// Steady periods simulated by [`polish_spring`]: with one, the cost along the gap jumps by
+/// Steady periods simulated by [`polish_fit`]: with one, the cost along the gap jumps by
 /// +-20 % at 1 % steps (the contact sequence of a gear flying freely in its gap is that
 /// sensitive, at any sub-step); with two it is smooth enough for a derivative.
 pub const POLISH_STEADY_PERIODS: usize = 2;
 
-/// Step of `ln p` for the effect's column of [`polish_spring`]'s Jacobian.
+/// Step of `ln p` for the effect's column of [`polish_fit`]'s Jacobian.
 const POLISH_P_STEP: f64 = 0.05;
 
 /// The simplex's result polished by Levenberg-Marquardt on the simulated residuals of the
@@ -757,16 +783,16 @@ const POLISH_P_STEP: f64 = 0.05;
 /// stuck at `tc` 0.017 and chi² 2.8e4; with the simulated column `tc` 0.046 and chi² 1.4e3,
 /// the truth 0.046).
 /// Returns the chain, `p`, the sigma of `ln p` (NaN: not estimated) and the cost.
-fn polish_spring(
+fn polish_fit(
     data: &Data,
     start: &LinExt,
     k: usize,
     p: f64,
     make: &impl Fn(usize, f64) -> Nl,
     free: Lin,
-    simulated: usize,
+    simulated: &[usize],
 ) -> (LinExt, f64, f64, f64) {
-    use super::effects::{build_on, model_on, theta};
+    use super::effects::{build_on, model_on};
     let steady = Some(POLISH_STEADY_PERIODS);
     let n = start.chain.masses();
     let lin_res = |lin: &LinExt| -> Option<Vec<f64>> {
@@ -795,8 +821,8 @@ fn polish_spring(
         let mut jac = nalgebra::DMatrix::<f64>::zeros(m, nt + 1);
         let mut ok = true;
         for j in 0..nt {
-            // the last `simulated` columns from the simulation itself
-            let by_sim = j + simulated >= nt;
+            // the `simulated` columns from the simulation itself
+            let by_sim = simulated.contains(&j);
             let h = if by_sim { POLISH_P_STEP * 0.2 } else { 1e-4 };
             let mut tp = t.clone();
             tp[j] += h;

@@ -10,7 +10,6 @@
 use super::lti::LinExt;
 use super::Data;
 use crate::analysis::{analyze_estimate, EstimatedFrf};
-pub use crate::identify::ground_damper::{ground_damping, without_ground_damper, GroundDamping};
 
 /// Start of the nominal `n`-body chain with viscous friction to the ground: the chain
 /// identified on the highest level's measurement with its ground damper taken out, and
@@ -39,6 +38,7 @@ mod tests {
     use super::*;
     use crate::diagnose::lti::Discrete;
     use crate::frf::{Frf, FrfKind};
+    use crate::identify::ground_damper::{ground_damping, without_ground_damper};
     use crate::model::Chain;
 
     /// A 3-body chain with a strong damper to the ground, its sampled differenced-velocity

@@ -765,6 +765,10 @@ pub const POLISH_STEADY_PERIODS: usize = 2;
 /// Step of `ln p` for the effect's column of [`polish_fit`]'s Jacobian.
 const POLISH_P_STEP: f64 = 0.05;
 
+/// Step (in the log of the parameter) of [`polish_fit`]'s other simulated columns: a
+/// fifth of [`POLISH_P_STEP`], the chain's parameters being known closer than the effect's.
+const POLISH_SIM_STEP: f64 = POLISH_P_STEP * 0.2;
+
 /// The simplex's result polished by Levenberg-Marquardt on the simulated residuals of the
 /// whole chain (with the linear extension an earlier step of the forward selection found,
 /// [`Lin::carried_by`]: a delay fitted alone has taken up part of a backlash's lag) and the
@@ -776,12 +780,13 @@ const POLISH_P_STEP: f64 = 0.05;
 /// simplex stops in the valley of (stiffness, gap, inertia split, damping) at a small gap
 /// (the describing-function start is 0.4-0.7x the truth); this moves all of them together.
 /// `free`: the linear parameters moved with the chain (the linear extension an earlier
-/// step found, [`Lin::carried_by`]; friction adds the motor's damper). The last
-/// `simulated` of their columns come from the simulation too: the damper beside Coulomb
-/// friction acts only while the motor slides, so the linear model's column for it points
-/// the step out of the (damper, `tc`) valley (dev A 50119: a step never accepted, the fit
-/// stuck at `tc` 0.017 and chi² 2.8e4; with the simulated column `tc` 0.046 and chi² 1.4e3,
-/// the truth 0.046).
+/// step found, [`Lin::carried_by`]; friction adds the motor's damper). The columns whose
+/// indices (into [`theta`]) `simulated` lists come from the simulation too, a step of
+/// [`POLISH_SIM_STEP`]: the damper beside Coulomb friction acts only while the motor
+/// slides, so the linear model's column for it points the step out of the (damper, `tc`)
+/// valley (dev A 50119: no step accepted, the fit stuck at `tc` 0.017 and chi² 2.8e4;
+/// with the simulated column `tc` 0.046 and chi² 1.4e3, the truth 0.046); a spring's
+/// coupling stiffness likewise ([`spring_cols`]).
 /// Returns the chain, `p`, the sigma of `ln p` (NaN: not estimated) and the cost.
 fn polish_fit(
     data: &Data,
@@ -823,7 +828,7 @@ fn polish_fit(
         for j in 0..nt {
             // the `simulated` columns from the simulation itself
             let by_sim = simulated.contains(&j);
-            let h = if by_sim { POLISH_P_STEP * 0.2 } else { 1e-4 };
+            let h = if by_sim { POLISH_SIM_STEP } else { 1e-4 };
             let mut tp = t.clone();
             tp[j] += h;
             let (rp, r0) = if by_sim {
@@ -925,9 +930,9 @@ mod tests {
         (prepare(&[rec], &opts).unwrap(), lin)
     }
 
-    /// Two log sweeps (1 kHz, 1-300 Hz, 8 s, 0.05 and 0.2 N m RMS-ish) on a 2-mass chain
-    /// with a damper to the ground and Coulomb friction of 0.012 N m, simulated exactly by
-    /// the diagnosis's own simulation (this tests the search, not the model).
+    /// Two log sweeps (1 kHz, 1-300 Hz, 8 s, peaks 0.07 and 0.28 N m) on a 2-mass chain
+    /// with a damper to the ground (0.05 N m s/rad) and Coulomb friction `tc` [N m],
+    /// simulated by the diagnosis's own simulation (this tests the search, not the model).
     fn friction_data(tc: f64) -> (Data, LinExt) {
         let fs = 1000.0;
         let mut c = ChirpDesign::new(fs, 1.0, 300.0, 8.0, 1.0);

@@ -909,38 +909,44 @@ mod tests {
     use crate::model::Chain;
     use crate::recording::Recording;
 
-    /// A single log sweep (1 kHz, 2-300 Hz, 8 s) on a 2-mass chain with a resonance of 1 %
-    /// damping near 80 Hz, narrower than the local polynomial's window: recorded exactly (no
-    /// noise, no encoder), prepared as the diagnosis prepares a measurement.
-    fn sweep_data() -> (Data, LinExt) {
-        let fs = 1000.0;
-        let mut c = ChirpDesign::new(fs, 2.0, 300.0, 8.0, 1.0);
+    /// The tests' axis and excitation: a log sweep (1 kHz, from `f_lo_hz` to 300 Hz, 8 s,
+    /// peak 1 N m, 0.4 s tapers) and a 2-mass chain with a resonance of 1 % damping near
+    /// 80 Hz and a damper `motor_b` [N m s/rad] to the ground.
+    fn sweep_axis(f_lo_hz: f64, motor_b: f64) -> (crate::excitation::Chirp, LinExt) {
+        let mut c = ChirpDesign::new(1000.0, f_lo_hz, 300.0, 8.0, 1.0);
         c.taper_s = 0.4;
-        let chirp = c.generate().unwrap();
         let chain = Chain::new(vec![1e-3, 2e-3], vec![170.0], vec![0.0015]).unwrap();
         let mut lin = LinExt::nominal(chain);
-        lin.motor_b = 0.01;
-        let u = chirp.signal.clone();
-        let pos = simulate(&lin, Nl::None, &u, fs, 1).pos;
-        let rec = Recording::of_position(fs, u, pos, Some(chirp.info()));
+        lin.motor_b = motor_b;
+        (c.generate().unwrap(), lin)
+    }
+
+    /// `recs` prepared as the diagnosis of a 2-mass chain prepares its measurements.
+    fn prepared(recs: &[Recording]) -> Data {
         let opts = DiagnoseOptions {
             masses: 2,
             ..DiagnoseOptions::default()
         };
-        (prepare(&[rec], &opts).unwrap(), lin)
+        prepare(recs, &opts).unwrap()
     }
 
-    /// Two log sweeps (1 kHz, 1-300 Hz, 8 s, peaks 0.07 and 0.28 N m) on a 2-mass chain
-    /// with a damper to the ground (0.05 N m s/rad) and Coulomb friction `tc` [N m],
-    /// simulated by the diagnosis's own simulation (this tests the search, not the model).
+    /// A single sweep ([`sweep_axis`] from 2 Hz) on the chain, whose resonance is narrower
+    /// than the local polynomial's window: recorded exactly (no noise, no encoder).
+    fn sweep_data() -> (Data, LinExt) {
+        let (chirp, lin) = sweep_axis(2.0, 0.01);
+        let fs = chirp.sample_rate_hz;
+        let u = chirp.signal.clone();
+        let pos = simulate(&lin, Nl::None, &u, fs, 1).pos;
+        let rec = Recording::of_position(fs, u, pos, Some(chirp.info()));
+        (prepared(&[rec]), lin)
+    }
+
+    /// Two sweeps ([`sweep_axis`] from 1 Hz, peaks 0.07 and 0.28 N m) on the chain with a
+    /// damper of 0.05 N m s/rad and Coulomb friction `tc` [N m], simulated by the
+    /// diagnosis's own simulation (this tests the search, not the model).
     fn friction_data(tc: f64) -> (Data, LinExt) {
-        let fs = 1000.0;
-        let mut c = ChirpDesign::new(fs, 1.0, 300.0, 8.0, 1.0);
-        c.taper_s = 0.4;
-        let chirp = c.generate().unwrap();
-        let chain = Chain::new(vec![1e-3, 2e-3], vec![170.0], vec![0.0015]).unwrap();
-        let mut lin = LinExt::nominal(chain);
-        lin.motor_b = 0.05;
+        let (chirp, lin) = sweep_axis(1.0, 0.05);
+        let fs = chirp.sample_rate_hz;
         let recs: Vec<Recording> = [0.07, 0.28]
             .iter()
             .map(|a| {
@@ -949,11 +955,7 @@ mod tests {
                 Recording::of_position(fs, u, pos, Some(chirp.info()))
             })
             .collect();
-        let opts = DiagnoseOptions {
-            masses: 2,
-            ..DiagnoseOptions::default()
-        };
-        (prepare(&recs, &opts).unwrap(), lin)
+        (prepared(&recs), lin)
     }
 
     /// The friction fit leaves the valley its start lies in: started from a damper that has

@@ -52,6 +52,9 @@ const DEV_SEED: u64 = 50_000;
 /// The held-out seed base: final code only.
 const HELD_OUT_SEED: u64 = 7_314_000;
 
+/// The speed target: one two-level 3-mass diagnosis on one core [s].
+const SPEED_TARGET_S: f64 = 2.0;
+
 /// CPU time of the calling thread [s].
 fn thread_cpu_s() -> f64 {
     flexid::rt::clock::thread_cpu_ns().map_or(f64::NAN, |ns| ns as f64 * 1e-9)
@@ -95,6 +98,21 @@ fn run_case(spec: &Spec, dir: &std::path::Path, verbose: bool) -> Outcome {
     };
     let cpu_s = thread_cpu_s() - c0;
     let wall_s = t.elapsed().as_secs_f64();
+    // where a case over the speed target spent its time
+    if let (Ok(d), true) = (result.as_ref(), cpu_s > SPEED_TARGET_S) {
+        let stages: Vec<String> = d
+            .stage_cpu_s
+            .iter()
+            .filter(|(_, s)| *s > 0.05)
+            .map(|(name, s)| format!("{name} {s:.2}"))
+            .collect();
+        println!(
+            "        seed {} {:.2} s one core (over {SPEED_TARGET_S} s): {}",
+            spec.seed,
+            cpu_s,
+            stages.join(", ")
+        );
+    }
     // only now the truth
     let truth = read_truth(&dir.join("truth.json"));
     if verbose {

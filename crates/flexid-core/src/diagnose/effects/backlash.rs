@@ -63,7 +63,7 @@ pub fn fit(data: &Data, nominal: &LinExt) -> Option<EffectFit> {
         data,
         nominal,
         Effect::Backlash,
-        "half_gap_rad",
+        crate::diagnose::search::BACKLASH_PARAM,
         &SPRING,
         |k, g| Nl::Backlash { k, g },
     )

@@ -50,7 +50,7 @@ pub fn fit(data: &Data, nominal: &LinExt) -> Option<EffectFit> {
         data,
         nominal,
         Effect::HardeningStiffness,
-        "x_ref_rad",
+        crate::diagnose::search::HARDENING_PARAM,
         &SPRING,
         |k, xref| Nl::Hardening { k, xref },
     );

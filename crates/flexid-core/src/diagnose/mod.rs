@@ -905,11 +905,23 @@ fn diagnose_from(
         opts.band_hz,
         &mut candidates,
     );
+    // the restoring stiffness the data need, if any: the better gravity fit
+    let restoring = candidates
+        .fits
+        .iter()
+        .filter(|f| f.effect == Effect::Gravity)
+        .chain(&ground_as_gravity)
+        .min_by(|a, b| a.chi2.total_cmp(&b.chi2))
+        .filter(|g| {
+            nominal.chi2 - g.chi2 > (g.added as f64) * (data.lines() as f64).ln() * data.noise.mean
+        })
+        .cloned();
     fit_amplitude_candidates(
         data,
         &nom_lin,
         &residual,
         opts.force_nonlinear,
+        restoring.as_ref(),
         &mut candidates,
     );
     let (mut fits, mut notes, steps) = (candidates.fits, candidates.notes, candidates.steps);
@@ -1583,6 +1595,7 @@ fn fit_amplitude_candidates(
     nom_lin: &LinExt,
     residual: &ResidualKind,
     force: bool,
+    restoring: Option<&EffectFit>,
     c: &mut Candidates,
 ) {
     if c.explained(data) && !force {
@@ -1617,8 +1630,18 @@ fn fit_amplitude_candidates(
     let low_lin = effects::fit_linear(data, &data.targets[low..low + 1], Lin::None, nom_lin, 40)
         .map(|r| r.0)
         .unwrap_or_else(|| nom_lin.clone());
-    c.push(
+    // a cubic spring to the ground also from the chain that holds the load by a linear
+    // one (gravity's fit, significant on its own): a free nominal chain can have taken the
+    // load for the ground, and a cubic spring on an immovable body changes nothing (dev
+    // A 50402: the load at 3.9e8 kg m2, chi2 flat over k3)
+    let fits = [
         effects::hardening::fit(data, &low_lin),
+        restoring.and_then(|g| effects::hardening::fit_ground_from_restoring(data, g)),
+    ];
+    c.push(
+        fits.into_iter()
+            .flatten()
+            .min_by(|a, b| a.chi2.total_cmp(&b.chi2)),
         Effect::HardeningStiffness,
     );
 }

@@ -816,3 +816,36 @@ fn an_extra_body_merged_into_the_load_is_absorbed_by_the_world_s_refit() {
         a.effects
     );
 }
+
+/// A linear effect that dominates the gap does not hide an amplitude-dependent one beside
+/// it: on dev case C 70201 (a current loop at 416 Hz and a hardening coupling, 4 masses,
+/// 4 kHz stepped sine) the hardening alone does not improve on the nominal model (the
+/// loop's part of the gap is the larger), but the FRF changes between levels beyond the
+/// noise, which the loop cannot explain, so the amplitude-dependent candidates are tried
+/// on top of it and both are named.
+#[test]
+fn an_amplitude_dependent_effect_is_sought_beside_a_linear_one_when_the_levels_differ() {
+    use flexid::diagnose::{diagnose, DiagnoseOptions};
+    use world::cases::Group;
+    use world::generate::generate;
+    let s = spec(Group::C, "hardening_stiffness+current_loop", 1, None);
+    let dir = tempfile::tempdir().unwrap();
+    let case = generate(&s, dir.path());
+    let recs: Vec<_> = case
+        .recordings
+        .iter()
+        .map(|p| flexid::recording::read_recording(p).unwrap())
+        .collect();
+    let d = diagnose(
+        &recs,
+        &DiagnoseOptions {
+            masses: case.truth.masses,
+            ..DiagnoseOptions::default()
+        },
+    )
+    .unwrap();
+    let named: Vec<&str> = d.effects.iter().map(|s| s.effect.name()).collect();
+    println!("seed {}: effects {named:?}", s.seed);
+    assert!(named.contains(&"current_loop"), "{named:?}");
+    assert!(named.contains(&"hardening_stiffness"), "{named:?}");
+}

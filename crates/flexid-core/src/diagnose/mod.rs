@@ -955,6 +955,7 @@ fn diagnose_from(
             let next = Next {
                 screened: &marginal,
                 mode_alone: mode_alone.as_ref(),
+                level_change: residual.change_local.is_some_and(|w| w.window.significant),
                 opts,
                 n,
             };
@@ -1108,6 +1109,12 @@ struct Next<'a> {
     /// more start of the mode's fit on top of other effects (besides the starts from the
     /// bands of the gap that remains).
     mode_alone: Option<&'a crate::model::Chain>,
+    /// The FRF changes between levels beyond the noise in a local band: on top of linear
+    /// effects only, which cannot explain that, the amplitude-dependent candidates are
+    /// tried even where they did not improve on the nominal model alone (a current loop
+    /// that dominates the gap hides a hardening's part of it from a fit without the loop:
+    /// dev C 70201).
+    level_change: bool,
     opts: &'a DiagnoseOptions,
     n: usize,
 }
@@ -1131,9 +1138,13 @@ impl Next<'_> {
         // the linear candidates are always tried (cheap; a large gap of another effect can
         // keep one from improving on the nominal model alone: C 70300's delay beside
         // gravity); the amplitude-dependent ones only when they did on their own
+        let changes_unexplained = self.level_change && named.iter().all(|e| e.is_linear());
         let mut wanted = |e: Effect| {
             !named.contains(&e)
-                && (opts.force_nonlinear || e.is_linear() || screened.contains(&e))
+                && (opts.force_nonlinear
+                    || e.is_linear()
+                    || screened.contains(&e)
+                    || changes_unexplained)
                 && steps.go(format_args!("{e} (forward selection step {step})"))
         };
         let mut fits: Vec<EffectFit> = Vec::new();

@@ -10,6 +10,7 @@
 
 use super::{finish_linear, fit_best_start, log_std, EffectFit, Lin, Param};
 use crate::diagnose::lti::{LinExt, Loop};
+use crate::diagnose::torque_path::Shape;
 use crate::diagnose::Data;
 use crate::diagnose::Effect;
 
@@ -17,7 +18,18 @@ pub fn fit(data: &Data, nominal: &LinExt) -> Option<EffectFit> {
     let fmax = data.f_max();
     let pen = (data.lines() as f64).ln();
     let mut best: Option<EffectFit> = None;
+    // the loop the drive's torque reading shows, where it shows one: measured, so a start
+    let read = data
+        .torque
+        .as_ref()
+        .filter(|tp| tp.shape == Shape::Loop)
+        .and_then(|tp| tp.with_loop.lp);
     for (order, k) in [(1u8, Lin::Loop1), (2, Lin::Loop2)] {
+        let from_reading = read.filter(|l| l.order == order).map(|l| {
+            let mut s = nominal.clone();
+            s.current_loop = Some(l);
+            s
+        });
         let starts: Vec<LinExt> = [0.5, 1.0, 2.0, 5.0]
             .iter()
             .flat_map(|m| [0.5, 0.8].into_iter().map(move |z| (m, z)))
@@ -31,6 +43,7 @@ pub fn fit(data: &Data, nominal: &LinExt) -> Option<EffectFit> {
                 });
                 s
             })
+            .chain(from_reading)
             .collect();
         let Some((m, r)) = fit_best_start(data, k, &starts, 40, 1) else {
             continue;

@@ -951,7 +951,6 @@ fn diagnose_from(
     let steps = match first {
         Some(i) => {
             let budget = std::cell::RefCell::new(&mut *steps);
-            let first_fit = fits[i].clone();
             let next = Next {
                 screened: &marginal,
                 mode_alone: mode_alone.as_ref(),
@@ -971,12 +970,6 @@ fn diagnose_from(
                     next.fit(d, base, named, &mut steps)
                 },
                 |base, effect| {
-                    // from the first fit's own parameters where it can; else afresh
-                    if effect == first_fit.effect {
-                        if let Some(f) = search::refit_from(data, base, &first_fit) {
-                            return Some(f);
-                        }
-                    }
                     // every candidate but `effect` counts as named: only it is fitted
                     let others: Vec<Effect> =
                         Effect::ALL.into_iter().filter(|&e| e != effect).collect();

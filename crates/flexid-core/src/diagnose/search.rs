@@ -485,58 +485,6 @@ fn finish(
     })
 }
 
-/// The amplitude-dependent fit `first` refitted on top of `lin` (its chain with the
-/// linear extension a later step of the forward selection found: the backfitting,
-/// [`super::select::forward`]), started from its own parameters: [`polish_fit`] of the
-/// chain, the extension and the effect's parameter, then [`finish`]. The full fit would
-/// search for the effect again from the describing function (141 simulations of a
-/// hardening against about 25 here: two backfits were 40 % of B 60102's time), while the
-/// backfit only moves a fit that is already in its basin. `None` for the effects it does
-/// not cover (a cubic spring to the ground: the caller fits it afresh).
-pub fn refit_from(data: &Data, lin: &LinExt, first: &EffectFit) -> Option<EffectFit> {
-    let param = |name: &str| {
-        first
-            .params
-            .iter()
-            .find(|p| p.name == name)
-            .map(|p| p.value)
-    };
-    match first.effect {
-        Effect::CoulombFriction => {
-            let tc = param(FRICTION_PARAM)?;
-            let make = |_: usize, q: f64| Nl::Friction { tc: q };
-            // the motor's damper moves with `tc` unless an extension takes the place
-            // (as in [`fit_nonlinear`])
-            let free = match Lin::carried_by(lin) {
-                Lin::None => Lin::Viscous,
-                other => other,
-            };
-            let damper = [theta(lin, free).len() - 1];
-            let cols: &[usize] = if free == Lin::Viscous { &damper } else { &[] };
-            let (l, q, sig, _) = polish_fit(data, lin, 0, tc, &make, free, cols);
-            let nl = make(0, q);
-            finish(data, l, nl, first.effect, FRICTION_PARAM, q, sig, true)
-        }
-        Effect::Backlash | Effect::HardeningStiffness if param("to_ground").is_none() => {
-            let k = param("coupling")? as usize;
-            let (pname, make): (&str, fn(usize, f64) -> Nl) = match first.effect {
-                Effect::Backlash => (BACKLASH_PARAM, |k, g| Nl::Backlash { k, g }),
-                _ => (HARDENING_PARAM, |k, xref| Nl::Hardening { k, xref }),
-            };
-            let p = param(pname)?;
-            if k + 1 >= lin.chain.masses() {
-                return None;
-            }
-            let cols = spring_cols(lin, k);
-            let (l, q, sig, _) = polish_fit(data, lin, k, p, &make, Lin::carried_by(lin), &cols);
-            let mut e = finish(data, l, make(k, q), first.effect, pname, q, sig, false)?;
-            e.params.push(EffectFit::param("coupling", k as f64, 0.0));
-            Some(e)
-        }
-        _ => None,
-    }
-}
-
 /// The parameter names of the amplitude-dependent effects' fits.
 pub const FRICTION_PARAM: &str = "coulomb_nm";
 pub const BACKLASH_PARAM: &str = "half_gap_rad";
@@ -1035,76 +983,6 @@ mod tests {
         );
         assert!((got_tc / tc - 1.0).abs() < 0.05, "tc {got_tc}");
         assert!((got_b / truth.motor_b - 1.0).abs() < 0.02, "b {got_b}");
-    }
-
-    /// The backfitting's refit ([`refit_from`]) moves an amplitude-dependent fit made
-    /// without a linear effect onto the pair: a hardening coupling measured behind a one-sample
-    /// delay of the torque (1 ms), its first fit at 1.5x the true `x_ref` on a chain 3 %
-    /// too stiff, refitted on top of the chain with the delay, ends within 5 % of the
-    /// true `x_ref` and at a chi² far below its start's, without searching afresh.
-    #[test]
-    fn the_backfit_moves_the_first_fit_onto_the_pair() {
-        let (chirp, truth) = sweep_axis(2.0, 0.02);
-        let fs = chirp.sample_rate_hz;
-        let top = 0.6;
-        let u_top: Vec<f64> = chirp.signal.iter().map(|v| v * top).collect();
-        // x_ref ten times the coupling's RMS deflection at the top level (a sweep's peak
-        // deflection at the resonance is several times its RMS)
-        let xref = 10.0 * simulate(&truth, Nl::None, &u_top, fs, 1).defl_rms[0];
-        let nl = Nl::Hardening { k: 0, xref };
-        let recs: Vec<Recording> = [0.15, top]
-            .iter()
-            .map(|a| {
-                let u: Vec<f64> = chirp.signal.iter().map(|v| v * a).collect();
-                // the torque acts one sample after its command
-                let mut held = vec![0.0];
-                held.extend_from_slice(&u[..u.len() - 1]);
-                let pos = simulate(&truth, nl, &held, fs, 4).pos;
-                assert!(pos.iter().all(|p| p.is_finite()), "the simulation diverged");
-                Recording::of_position(fs, u, pos, Some(chirp.info()))
-            })
-            .collect();
-        let data = prepared(&recs);
-        let mut off = truth.clone();
-        off.chain.stiffness_nm_per_rad[0] *= 1.03;
-        let first = {
-            let nl = Nl::Hardening {
-                k: 0,
-                xref: 1.5 * xref,
-            };
-            let mut f = finish(
-                &data,
-                off.clone(),
-                nl,
-                Effect::HardeningStiffness,
-                HARDENING_PARAM,
-                1.5 * xref,
-                f64::NAN,
-                false,
-            )
-            .unwrap();
-            f.params.push(EffectFit::param("coupling", 0.0, 0.0));
-            f
-        };
-        let mut with_delay = off.clone();
-        with_delay.delay_s = 1.0 / fs;
-        let start = chi2_of(
-            &data,
-            &with_delay,
-            Nl::Hardening {
-                k: 0,
-                xref: 1.5 * xref,
-            },
-        );
-        let refit = refit_from(&data, &with_delay, &first).unwrap();
-        let got = refit.params[0].value;
-        println!(
-            "x_ref {got:.4e} (truth {xref:.4e}), chi2 {start:.3e} -> {:.3e} (first fit, no delay: {:.3e})",
-            refit.chi2, first.chi2
-        );
-        assert!((got / xref - 1.0).abs() < 0.05, "x_ref {got} vs {xref}");
-        assert!(refit.chi2 < 0.1 * start, "{} vs {start}", refit.chi2);
-        assert_eq!(refit.params[1].name, "coupling");
     }
 
     /// The largest relative difference between two models over every line.

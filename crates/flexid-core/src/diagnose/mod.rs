@@ -912,9 +912,7 @@ fn diagnose_from(
         .filter(|f| f.effect == Effect::Gravity)
         .chain(&ground_as_gravity)
         .min_by(|a, b| a.chi2.total_cmp(&b.chi2))
-        .filter(|g| {
-            nominal.chi2 - g.chi2 > (g.added as f64) * (data.lines() as f64).ln() * data.noise.mean
-        })
+        .filter(|g| rank::score(data, nominal.chi2, g) > 0.0)
         .cloned();
     fit_amplitude_candidates(
         data,

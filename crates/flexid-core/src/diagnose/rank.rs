@@ -61,8 +61,6 @@ pub fn rank(
     fits: &[EffectFit],
     residual: &ResidualKind,
 ) -> (Vec<Ranked>, Option<usize>) {
-    let pen = (data.lines() as f64).ln();
-    let per_line = data.noise.mean;
     let mut r: Vec<(Ranked, Option<usize>)> = fits
         .iter()
         .enumerate()
@@ -71,7 +69,7 @@ pub fn rank(
                 Ranked {
                     effect: e.effect,
                     after_rms_db: rms_db(data, e),
-                    score: (nominal.chi2 - e.chi2) / per_line - pen * e.added as f64,
+                    score: score(data, nominal.chi2, e),
                     chi2: e.chi2,
                     added_params: e.added,
                     params: e.params.clone(),
@@ -100,6 +98,14 @@ pub fn rank(
             .then_some(i)
     });
     (r.into_iter().map(|x| x.0).collect(), win)
+}
+
+/// The score of `fit` against a model of chi² `chi2_before`: the chi² reduction in units of
+/// the noise's mean per line, minus the BIC price `ln(lines)` of each parameter it adds
+/// (> 0: the improvement is significant).
+pub fn score(data: &Data, chi2_before: f64, fit: &EffectFit) -> f64 {
+    let pen = (data.lines() as f64).ln();
+    (chi2_before - fit.chi2) / data.noise.mean - pen * fit.added as f64
 }
 
 /// The fraction of the chi² beyond the noise (`chi2_before - mean · lines`) that a model of

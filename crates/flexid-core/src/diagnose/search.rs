@@ -485,11 +485,6 @@ fn finish(
     })
 }
 
-/// The parameter names of the amplitude-dependent effects' fits.
-pub const FRICTION_PARAM: &str = "coulomb_nm";
-pub const BACKLASH_PARAM: &str = "half_gap_rad";
-pub const HARDENING_PARAM: &str = "x_ref_rad";
-
 /// A spring nonlinearity of one coupling as the per-level linear fits see it: its
 /// describing function (the equivalent stiffness under a Gaussian deflection).
 pub struct Spring {

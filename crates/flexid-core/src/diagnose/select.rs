@@ -93,14 +93,12 @@ pub fn forward(
     mut next: impl FnMut(&Data, &LinExt, &[Effect]) -> Vec<EffectFit>,
     mut backfit: impl FnMut(&LinExt, Effect) -> Option<EffectFit>,
 ) -> (Vec<Step>, Vec<String>) {
-    let pen = (data.lines() as f64).ln();
-    let per_line = data.noise.mean;
     let rms = |f: &EffectFit| super::rms_parts(data, &f.model).0;
     let mut notes = Vec::new();
     let mut steps = vec![Step {
         effect: first.effect,
         after_rms_db: rms(&first),
-        score: (nominal_chi2 - first.chi2) / per_line - pen * first.added as f64,
+        score: super::rank::score(data, nominal_chi2, &first),
         fit: first,
     }];
     while steps.len() < MAX_EFFECTS {
@@ -116,7 +114,7 @@ pub fn forward(
                 .collect::<Vec<_>>(),
             None => next(data, &last.lin, &named),
         };
-        let score_of = |f: &EffectFit| (last.chi2 - f.chi2) / per_line - pen * f.added as f64;
+        let score_of = |f: &EffectFit| super::rank::score(data, last.chi2, f);
         let mut scored: Vec<(f64, EffectFit)> = fits
             .into_iter()
             .filter(|f| !named.contains(&f.effect) && f.chi2.is_finite())

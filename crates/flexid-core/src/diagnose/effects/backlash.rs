@@ -63,7 +63,7 @@ pub fn fit(data: &Data, nominal: &LinExt) -> Option<EffectFit> {
         data,
         nominal,
         Effect::Backlash,
-        crate::diagnose::search::BACKLASH_PARAM,
+        "half_gap_rad",
         &SPRING,
         |k, g| Nl::Backlash { k, g },
     )

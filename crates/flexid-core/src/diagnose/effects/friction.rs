@@ -14,7 +14,7 @@ pub fn fit(data: &Data, nominal: &LinExt) -> Option<EffectFit> {
         data,
         nominal,
         Effect::CoulombFriction,
-        crate::diagnose::search::FRICTION_PARAM,
+        "coulomb_nm",
         0.01 * u,
         2.0 * u,
         true,

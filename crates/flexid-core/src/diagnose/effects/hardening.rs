@@ -53,7 +53,7 @@ pub fn fit(data: &Data, nominal: &LinExt) -> Option<EffectFit> {
         data,
         nominal,
         Effect::HardeningStiffness,
-        crate::diagnose::search::HARDENING_PARAM,
+        "x_ref_rad",
         &SPRING,
         |k, xref| Nl::Hardening { k, xref },
     );

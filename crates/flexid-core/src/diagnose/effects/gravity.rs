@@ -117,18 +117,8 @@ pub fn ends_in_ground(chain: &Chain) -> bool {
 /// extra-body fit, or a nominal fit, that found it): the bodies before it, its spring as
 /// the restoring stiffness. None when the last body is not such a ground.
 pub fn from_ground_body(data: &Data, chain: &Chain) -> Option<EffectFit> {
-    let n = chain.masses();
-    if !ends_in_ground(chain) {
-        return None;
-    }
-    let rest: f64 = chain.inertia_kgm2[..n - 1].iter().sum();
-    let body = Chain::new(
-        chain.inertia_kgm2[..n - 1].to_vec(),
-        chain.stiffness_nm_per_rad[..n - 2].to_vec(),
-        chain.damping_nms_per_rad[..n - 2].to_vec(),
-    )
-    .ok()?;
-    let k = chain.stiffness_nm_per_rad[n - 2];
+    let (body, k) = without_ground_body(chain)?;
+    let rest = body.total_inertia();
     let starts: Vec<LinExt> = [0.02, 0.1, 0.3]
         .iter()
         .map(|z| {
@@ -140,6 +130,23 @@ pub fn from_ground_body(data: &Data, chain: &Chain) -> Option<EffectFit> {
         .collect();
     let (m, r) = fit_best_start(data, Lin::Gravity, &starts, 80, 1)?;
     Some(finish(data, m, &r))
+}
+
+/// A chain whose last body is the ground ([`ends_in_ground`]) as the bodies before it and
+/// the stiffness [N m/rad] of the spring that ties them to the ground; `None` when the last
+/// body is not such a ground.
+pub fn without_ground_body(chain: &Chain) -> Option<(Chain, f64)> {
+    if !ends_in_ground(chain) {
+        return None;
+    }
+    let n = chain.masses();
+    let body = Chain::new(
+        chain.inertia_kgm2[..n - 1].to_vec(),
+        chain.stiffness_nm_per_rad[..n - 2].to_vec(),
+        chain.damping_nms_per_rad[..n - 2].to_vec(),
+    )
+    .ok()?;
+    Some((body, chain.stiffness_nm_per_rad[n - 2]))
 }
 
 /// An extra-body fit whose new body is the ground ([`ends_in_ground`]) *is* a restoring

@@ -136,16 +136,11 @@ pub fn fit_ground_from_restoring(data: &Data, restoring: &EffectFit) -> Option<E
     // a restoring stiffness found as a ground body's spring (an extra body that is the
     // ground): the bodies before it, its spring to the ground (its damper is left to the
     // chain's correction)
-    let ch = &base.chain;
-    let n = ch.masses();
-    if super::gravity::ends_in_ground(ch) && base.ground_k == 0.0 {
-        base.ground_k = ch.stiffness_nm_per_rad[n - 2];
-        base.chain = crate::model::Chain::new(
-            ch.inertia_kgm2[..n - 1].to_vec(),
-            ch.stiffness_nm_per_rad[..n - 2].to_vec(),
-            ch.damping_nms_per_rad[..n - 2].to_vec(),
-        )
-        .ok()?;
+    if base.ground_k == 0.0 {
+        if let Some((body, k)) = super::gravity::without_ground_body(&base.chain) {
+            base.chain = body;
+            base.ground_k = k;
+        }
     }
     if base.ground_k <= 0.0 || !stiffens_with_level(data, &base) {
         return None;

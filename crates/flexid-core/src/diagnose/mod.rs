@@ -1128,7 +1128,8 @@ impl Next<'_> {
         let step = named.len() + 1;
         // the linear candidates are always tried (cheap; a large gap of another effect can
         // keep one from improving on the nominal model alone: C 70300's delay beside
-        // gravity); the amplitude-dependent ones only when they did on their own
+        // gravity); the amplitude-dependent ones only when they did on their own, or when
+        // only linear effects are named and the FRF changes between levels
         let changes_unexplained = self.level_change && named.iter().all(|e| e.is_linear());
         let mut wanted = |e: Effect| {
             !named.contains(&e)
@@ -1635,7 +1636,8 @@ fn fit_amplitude_candidates(
     // a cubic spring to the ground also from the chain that holds the load by a linear
     // one (gravity's fit, significant on its own): a free nominal chain can have taken the
     // load for the ground, and a cubic spring on an immovable body changes nothing (dev
-    // A 50402: the load at 3.9e8 kg m2, chi2 flat over k3)
+    // B 60304: named `gravity` before; dev A 50402, whose load at 3.9e8 kg m2 even the
+    // extra-body fit keeps as the ground, is still missed)
     let fits = [
         effects::hardening::fit(data, &low_lin),
         restoring.and_then(|g| effects::hardening::fit_ground_from_restoring(data, g)),

@@ -220,7 +220,11 @@ fn estimate_response(
             format!("; the motion lies on a grid of {q:.4e} (an encoder count), whose error's level q^2/12 is added to each line's variance")
         });
         // the user's band first, else the sweep's own
-        let frf = frf::estimate_lpm_with_floor(u, y, fs, kind, band_hz.or(info.band_hz), floor)?;
+        let mut frf =
+            frf::estimate_lpm_with_floor(u, y, fs, kind, band_hz.or(info.band_hz), floor)?;
+        if let Some((q, _)) = resp.quantum {
+            frf::quantisation::add_sweep_tone_variance(&mut frf, q, u);
+        }
         let q = frf::lpm_dof();
         let width = 2 * frf::lpm::HALF_WIDTH + 1;
         let choices = format!(

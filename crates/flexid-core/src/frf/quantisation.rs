@@ -260,6 +260,38 @@ pub fn tone_error_power_bound(q: f64, measured: f64, sigma: f64) -> f64 {
         .fold(0.0, f64::max)
 }
 
+/// Adds to each line of a single sweep's estimate the variance of its count error as a
+/// tone's ([`tone_error_power_bound`]): a sweep plays one tone at a time, so while it passes
+/// a line the recorded motion is that tone, and the counts' error is a gain error of the
+/// tone (the quantiser's describing function at the tone's amplitude), not white error
+/// spread over every line. The tone's torque amplitude is `sqrt(2)` times the command's
+/// RMS (a constant-amplitude sweep); its amplitude in the recorded signal at each line is
+/// the line's response times that (`|H| / |D|`, `D` the differencing of a position). An
+/// error `E₁` on the recorded tone is `E₁ |D| / a` on the line: `var += E[E₁²] |D|² / a²`.
+pub fn add_sweep_tone_variance(frf: &mut super::Frf, q: f64, torque_cmd: &[f64]) {
+    let n = torque_cmd.len().max(1) as f64;
+    let a = (2.0 * torque_cmd.iter().map(|v| v * v).sum::<f64>() / n).sqrt();
+    if !(a > 0.0 && q > 0.0) {
+        return;
+    }
+    let fs = frf.sample_rate_hz;
+    for i in 0..frf.freq_hz.len() {
+        let d2 = match frf.kind {
+            FrfKind::DifferencedVelocity => {
+                let w = 2.0 * std::f64::consts::PI * frf.freq_hz[i] / fs;
+                fs * fs * (2.0 - 2.0 * w.cos())
+            }
+            _ => 1.0,
+        };
+        let amplitude = frf.h[i].norm() / d2.sqrt() * a;
+        let tone = tone_error_power_bound(q, amplitude, 0.0);
+        let v = tone * d2 / (a * a);
+        if v.is_finite() {
+            frf.var[i] += v;
+        }
+    }
+}
+
 /// The variance [(unit of H)²] that a repeating error of power `repeating_var` (in the
 /// recorded signal's units², [`repeating_variance`]) adds to the FRF line at `freq_hz`
 /// whose mean input over one period of `period_samples` samples is `u` (the `1/N`-scaled

@@ -33,6 +33,7 @@ pub mod simplex;
 pub mod sweep_plan;
 #[cfg(test)]
 mod tests_support;
+pub mod tone_deflection;
 pub mod torque_path;
 pub mod trajectory;
 

@@ -11,6 +11,7 @@ use super::kept_outputs;
 use super::lti::{Discrete, LinExt};
 use super::nlsim::{sim_frf, simulate, simulate_lanes_into, Nl, Record};
 use super::simplex;
+use super::tone_deflection::{peak_deflections, tone_amplitude_nm};
 use super::Data;
 use crate::diagnose::Effect;
 use num_complex::Complex64;
@@ -600,51 +601,61 @@ pub fn fit_spring(
     };
     let lo = (0..data.levels.len()).min_by(by_level)?;
     let hi = (0..data.levels.len()).max_by(by_level)?;
+    // the deflection each level's spring feels: the RMS over the record and, under a tone,
+    // also the resonance peak's (as an RMS: the sine's at the peak); a start from each
     let level_fit = |i: usize| {
         let lin = fit_linear(data, &data.targets[i..i + 1], Lin::None, nominal, 30)
             .map(|r| r.0)
             .unwrap_or_else(|| nominal.clone());
-        let u = &data.levels[i].rec.torque_cmd_nm;
-        let defl = simulate(&lin, Nl::None, u, data.fs, 1).defl_rms;
-        (lin, defl)
+        let level = &data.levels[i];
+        let mut measures =
+            vec![simulate(&lin, Nl::None, &level.rec.torque_cmd_nm, data.fs, 1).defl_rms];
+        if let Some(a) = tone_amplitude_nm(&level.rec) {
+            let peak = peak_deflections(&lin, &level.f, a);
+            measures.push(peak.iter().map(|p| p / std::f64::consts::SQRT_2).collect());
+        }
+        (lin, measures)
     };
-    let (lin_lo, s_lo) = level_fit(lo);
-    let (lin_hi, s_hi) = if hi == lo {
-        (lin_lo.clone(), s_lo.clone())
+    let (lin_lo, m_lo) = level_fit(lo);
+    let (lin_hi, m_hi) = if hi == lo {
+        (lin_lo.clone(), m_lo.clone())
     } else {
         level_fit(hi)
     };
-    let (base, s_ref) = if spring.high_level_chain {
-        (&lin_hi, &s_hi)
-    } else {
-        (&lin_lo, &s_lo)
-    };
     let mut best: Option<(f64, usize, LinExt, f64)> = None;
-    for k in 0..nominal.chain.masses().saturating_sub(1) {
-        let c = |l: &LinExt| l.chain.stiffness_nm_per_rad[k];
-        let p0 = describing_solution(spring.equivalent, c(&lin_lo), s_lo[k], c(&lin_hi), s_hi[k]);
-        let ps: Vec<f64> = match p0 {
-            Some(p) => AROUND.iter().map(|f| f * p).collect(),
-            None if s_ref[k] > 0.0 => {
-                let (a, b) = (spring.range.0.ln(), spring.range.1.ln());
-                // neighbouring points at most a factor RANGE_STEP apart
-                let m = ((b - a) / RANGE_STEP.ln()).ceil().max(1.0) as usize;
-                (0..=m)
-                    .map(|i| s_ref[k] * (a + (b - a) * i as f64 / m as f64).exp())
-                    .collect()
-            }
-            None => continue,
+    for (s_lo, s_hi) in m_lo.iter().zip(&m_hi) {
+        let (base, s_ref) = if spring.high_level_chain {
+            (&lin_hi, s_hi)
+        } else {
+            (&lin_lo, s_lo)
         };
-        for p in ps {
-            let e = (spring.equivalent)(p, s_ref[k]).max(1e-3);
-            let mut lin = base.clone();
-            lin.chain.stiffness_nm_per_rad[k] = c(base) / e;
-            if spring.damping_follows {
-                lin.chain.damping_nms_per_rad[k] /= e;
-            }
-            let chi2 = chi2_of(data, &lin, make(k, p));
-            if chi2.is_finite() && best.as_ref().is_none_or(|b| chi2 < b.0) {
-                best = Some((chi2, k, lin, p));
+        for k in 0..nominal.chain.masses().saturating_sub(1) {
+            let c = |l: &LinExt| l.chain.stiffness_nm_per_rad[k];
+            let p0 =
+                describing_solution(spring.equivalent, c(&lin_lo), s_lo[k], c(&lin_hi), s_hi[k]);
+            let ps: Vec<f64> = match p0 {
+                Some(p) => AROUND.iter().map(|f| f * p).collect(),
+                None if s_ref[k] > 0.0 => {
+                    let (a, b) = (spring.range.0.ln(), spring.range.1.ln());
+                    // neighbouring points at most a factor RANGE_STEP apart
+                    let m = ((b - a) / RANGE_STEP.ln()).ceil().max(1.0) as usize;
+                    (0..=m)
+                        .map(|i| s_ref[k] * (a + (b - a) * i as f64 / m as f64).exp())
+                        .collect()
+                }
+                None => continue,
+            };
+            for p in ps {
+                let e = (spring.equivalent)(p, s_ref[k]).max(1e-3);
+                let mut lin = base.clone();
+                lin.chain.stiffness_nm_per_rad[k] = c(base) / e;
+                if spring.damping_follows {
+                    lin.chain.damping_nms_per_rad[k] /= e;
+                }
+                let chi2 = chi2_of(data, &lin, make(k, p));
+                if chi2.is_finite() && best.as_ref().is_none_or(|b| chi2 < b.0) {
+                    best = Some((chi2, k, lin, p));
+                }
             }
         }
     }

@@ -32,18 +32,17 @@ pub fn identify(a: &IdentifyArgs) -> Result<(), CliError> {
 
 /// `flexid bode`.
 pub fn bode(a: &BodeArgs) -> Result<(), CliError> {
-    let mut opts = options(&a.model)?;
+    let opts = options(&a.model)?;
     let rec = load(&a.recording)?;
     check_band_nyquist(opts.band_hz, &rec, &a.recording)?;
     check_excited(&rec, &a.recording)?;
-    if a.no_model {
-        opts.fit.starts = 1;
-    }
-    let mut an = run_analysis(&rec, &opts)?;
-    if a.no_model {
-        an.model = None;
-        an.model_frf = None;
-    }
+    let an = if a.no_model {
+        // the measurement alone: nothing identified, so nothing for an identification to
+        // refuse (a record with too few usable lines is still drawn)
+        crate::analysis::measure_only(&rec, &opts).map_err(|e| CliError::failed(e.to_string()))?
+    } else {
+        run_analysis(&rec, &opts)?
+    };
     write_svg(&an, &a.recording.display().to_string(), &a.out)?;
     println!("wrote {}", a.out.display());
     Ok(())

@@ -23,7 +23,8 @@ pub use estimate::{
 };
 pub use json::to_json;
 pub use pipeline::{
-    analyze, analyze_estimate, Analysis, AnalysisError, AnalysisOptions, GroundDamperOut,
+    analyze, analyze_estimate, measure_only, Analysis, AnalysisError, AnalysisOptions,
+    GroundDamperOut,
 };
 pub use summary::{Coupling, ModelSummary};
 pub use time_cap::TimeCap;

@@ -151,6 +151,42 @@ pub fn analyze(rec: &Recording, opts: &AnalysisOptions) -> Result<Analysis, Anal
     analyze_estimate(rec, measured, opts)
 }
 
+/// The measurement alone: the FRF estimated as [`analyze`] estimates it, with no pairs
+/// detected and no model identified (a Bode plot of what was measured, which a record
+/// whose lines are too few or too noisy for an identification still has).
+pub fn measure_only(rec: &Recording, opts: &AnalysisOptions) -> Result<Analysis, AnalysisError> {
+    let measured = estimate_frf(rec, opts.band_hz)?;
+    let mut notes = Vec::new();
+    if let Some(src) = &rec.sidecar.source {
+        notes.push(format!("source: {src}"));
+    }
+    notes.push(measured.choices.clone());
+    let supported = supported_lines(&measured.frf, opts, &mut notes);
+    Ok(Analysis {
+        measured,
+        sample_rate_hz: rec.sample_rate_hz,
+        delay_samples: rec.sidecar.io_delay_samples.unwrap_or(0),
+        total_inertia: None,
+        detection: Detection {
+            pairs: Vec::new(),
+            peaks: Vec::new(),
+            unconfirmed: Vec::new(),
+            rejected: Vec::new(),
+            notes: Vec::new(),
+        },
+        paper: None,
+        exact: None,
+        fit: None,
+        orders: Vec::new(),
+        model: None,
+        model_frf: None,
+        notes,
+        time_cap: None,
+        supported_band_hz: supported,
+        ground_damper: None,
+    })
+}
+
 /// [`analyze`] from an FRF estimated beforehand from `rec` (and possibly corrected, e.g. a
 /// known ground damper removed: `diagnose`'s damper-free starts). `rec` gives the sample
 /// rate, the I/O delay and the sidecar's facts.

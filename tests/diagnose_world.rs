@@ -850,30 +850,16 @@ fn an_amplitude_dependent_effect_is_sought_beside_a_linear_one_when_the_levels_d
     assert!(named.contains(&"hardening_stiffness"), "{named:?}");
 }
 
-/// A hardening spring under a sweep is started from the deflection at its resonance, not
-/// from the RMS over the record: on an exploration case (base 30000, not a development or
-/// held-out seed; A 30309: a hardening on the second coupling of 3 masses, 2 kHz swept sine)
-/// the RMS deflection's describing function put `x_ref` 8x below the spring's, every start
-/// was worse than the nominal model, and the verdict was `unexplained`. Started from the
-/// resonance peak as well, the fit reaches the spring's own `x_ref` on its own coupling.
-#[test]
-fn a_spring_under_a_sweep_is_started_from_its_resonance_deflection() {
+/// The hardening coupling of a case (its index and `x_ref`), diagnosed: the verdict, and
+/// the fitted coupling and `x_ref`.
+fn diagnose_hardening(s: &world::cases::Spec) -> ((usize, f64), String, usize, f64) {
     use flexid::diagnose::{diagnose, DiagnoseOptions};
-    use world::cases::Group;
     use world::generate::generate;
     use world::plant::Law;
-    let class = "hardening_stiffness";
-    let ci = Group::A.classes().iter().position(|c| *c == class).unwrap();
-    let s = world::cases::Spec {
-        group: Group::A,
-        class,
-        seed: world::cases::seed_of(30_000, Group::A, ci, 9),
-        fs_hz: None,
-    };
     let dir = tempfile::tempdir().unwrap();
-    let case = generate(&s, dir.path());
+    let case = generate(s, dir.path());
     assert_eq!(case.truth.measurement.excitation.kind.name(), "swept_sine");
-    let (coupling, x_ref) = case
+    let truth = case
         .truth
         .plant
         .couplings
@@ -897,19 +883,68 @@ fn a_spring_under_a_sweep_is_started_from_its_resonance_deflection() {
         },
     )
     .unwrap();
-    assert_eq!(d.verdict.name(), "hardening_stiffness", "seed {}", s.seed);
-    let fit = &d.effects[0].fit;
-    let param = |name: &str| fit.params.iter().find(|p| p.name == name).unwrap().value;
+    let verdict = d.verdict.name().to_string();
+    let Some(step) = d.effects.first() else {
+        return (truth, verdict, usize::MAX, f64::NAN);
+    };
+    let param = |name: &str| {
+        step.fit
+            .params
+            .iter()
+            .find(|p| p.name == name)
+            .map_or(f64::NAN, |p| p.value)
+    };
     println!(
-        "seed {}: x_ref {:.4e} rad on coupling {} (the world's {x_ref:.4e} on {coupling})",
+        "seed {}: {verdict}, x_ref {:.4e} rad on coupling {} (the world's {:.4e} on {})",
         s.seed,
         param("x_ref_rad"),
-        param("coupling")
+        param("coupling"),
+        truth.1,
+        truth.0
     );
-    assert_eq!(param("coupling") as usize, coupling);
-    assert!(
-        (param("x_ref_rad") / x_ref - 1.0).abs() < 0.2,
-        "{}",
-        param("x_ref_rad")
-    );
+    (
+        truth,
+        verdict,
+        param("coupling") as usize,
+        param("x_ref_rad"),
+    )
+}
+
+/// A hardening spring under a sweep is started from the deflection at its resonance, not
+/// from the RMS over the record: on an exploration case (base 30000, not a development or
+/// held-out seed; A 30309: a hardening on the second coupling of 3 masses, 2 kHz swept sine)
+/// the RMS deflection's describing function put `x_ref` 8x below the spring's, every start
+/// was worse than the nominal model, and the verdict was `unexplained`. Started from the
+/// resonance peak as well, the fit reaches the spring's own `x_ref` on its own coupling.
+#[test]
+fn a_spring_under_a_sweep_is_started_from_its_resonance_deflection() {
+    use world::cases::Group;
+    let class = "hardening_stiffness";
+    let ci = Group::A.classes().iter().position(|c| *c == class).unwrap();
+    let s = world::cases::Spec {
+        group: Group::A,
+        class,
+        seed: world::cases::seed_of(30_000, Group::A, ci, 9),
+        fs_hz: None,
+    };
+    let ((coupling, x_ref), verdict, k, x) = diagnose_hardening(&s);
+    assert_eq!(verdict, "hardening_stiffness", "seed {}", s.seed);
+    assert_eq!(k, coupling);
+    assert!((x / x_ref - 1.0).abs() < 0.2, "{x}");
+}
+
+/// A spring that jumps is found from the small-signal chain: on dev case A 50303 (2 masses,
+/// a 4 kHz sweep through a hardening coupling whose resonance moves from 75 to about 200 Hz
+/// at the high level) each level's linear fit put the chain far from the true one and the
+/// cost of `x_ref` has a valley some 15 % wide, flat beside it: no start reached it
+/// (`unexplained`). The chain fitted where the levels agree, the stiffening where they do
+/// not, and the backbone's amplitude put the scan on it.
+#[test]
+fn a_spring_that_jumps_is_found_from_the_small_signal_chain() {
+    use world::cases::Group;
+    let s = spec(Group::A, "hardening_stiffness", 3, None);
+    let ((coupling, x_ref), verdict, k, x) = diagnose_hardening(&s);
+    assert_eq!(verdict, "hardening_stiffness", "seed {}", s.seed);
+    assert_eq!(k, coupling);
+    assert!((x / x_ref - 1.0).abs() < 0.2, "{x}");
 }

@@ -30,6 +30,7 @@ pub mod search;
 pub mod select;
 pub mod shortened;
 pub mod simplex;
+pub mod small_signal;
 pub mod sweep_plan;
 #[cfg(test)]
 mod tests_support;

@@ -11,6 +11,7 @@ use super::kept_outputs;
 use super::lti::{Discrete, LinExt};
 use super::nlsim::{sim_frf, simulate, simulate_lanes_into, Nl, Record};
 use super::simplex;
+use super::small_signal;
 use super::tone_deflection::{peak_deflections, tone_amplitude_nm};
 use super::Data;
 use crate::diagnose::Effect;
@@ -506,6 +507,12 @@ pub struct Spring {
     /// Cost evaluations of the simplex refinement, per round (the second from the best
     /// point with half the steps).
     pub refine_evals: [usize; 2],
+    /// Also scan `p` on the small-signal chain ([`small_signal`]) around the value the
+    /// high level's stiffening gives: the backbone of a spring that stiffens like a cubic
+    /// (a sine of amplitude `A` acts as a Gaussian of RMS `A/2`, the amplitude at the
+    /// shifted resonance is the linear peak's over the frequency ratio). Not for a gap,
+    /// which softens and whose describing function is another.
+    pub small_signal_scan: bool,
 }
 
 /// How the fit of a backlash case moves along its valley, per unit of `ln` of the gap: the
@@ -529,6 +536,14 @@ pub const VALLEY: Valley = Valley {
 
 /// Largest ratio between neighbouring points of the search over [`Spring::range`].
 const RANGE_STEP: f64 = 4.0;
+
+/// Factors of the scan of the effect's parameter around the describing function's value on
+/// the small-signal chain: 0.5 to 2 in steps of 1.1 (a jumping spring's cost has a valley
+/// some 15 % wide in its parameter and is flat beside it).
+const SCAN: [f64; 15] = [
+    0.513, 0.564, 0.621, 0.683, 0.751, 0.826, 0.909, 1.0, 1.1, 1.21, 1.331, 1.464, 1.611, 1.772,
+    1.949,
+];
 
 /// Start factors of the effect's parameter around the describing-function solution.
 const AROUND: [f64; 4] = [1.0, 1.5, 2.2, 3.2];
@@ -655,6 +670,55 @@ pub fn fit_spring(
                 let chi2 = chi2_of(data, &lin, make(k, p));
                 if chi2.is_finite() && best.as_ref().is_none_or(|b| chi2 < b.0) {
                     best = Some((chi2, k, lin, p));
+                }
+            }
+        }
+    }
+    // the small-signal chain the levels agree on, where each level's own fit is bent far
+    // from it ([`small_signal`]): a scan of the spring's parameter around the describing
+    // function's value on the coupling the high level changes most
+    let split = if spring.small_signal_scan {
+        small_signal::split(data, &lin_lo, lo, hi)
+    } else {
+        None
+    };
+    if let Some(sp) = split {
+        let level = &data.levels[hi];
+        // a sine of amplitude A stiffens a cubic as a Gaussian of RMS A/2 does
+        let s_hi: Vec<f64> = match tone_amplitude_nm(&level.rec) {
+            Some(a) => peak_deflections(&sp.chain, &level.f, a)
+                .into_iter()
+                .map(|p| p / 2.0)
+                .collect(),
+            None => simulate(&sp.chain, Nl::None, &level.rec.torque_cmd_nm, data.fs, 1).defl_rms,
+        };
+        let changed = (0..nominal.chain.masses().saturating_sub(1))
+            .map(|k| {
+                let c = sp.chain.chain.stiffness_nm_per_rad[k];
+                (
+                    k,
+                    c,
+                    small_signal::equivalent_stiffness(data, &sp.chain, k, &sp.changed_hi),
+                )
+            })
+            .max_by(|a, b| (a.2 / a.1).ln().abs().total_cmp(&(b.2 / b.1).ln().abs()));
+        if let Some((k, c_ss, c_eq)) = changed {
+            // under a tone the spring's deflection at the shifted resonance: the forcing's
+            // work per cycle balances the damper's, `A = F / (d ω)`, so the linear peak
+            // shrinks by the frequency ratio `sqrt(c_ss / c_eq)` where the resonance moved
+            let s = if tone_amplitude_nm(&level.rec).is_some() {
+                s_hi[k] * (c_ss / c_eq).sqrt()
+            } else {
+                s_hi[k]
+            };
+            let p0 = describing_solution(spring.equivalent, c_ss, 1e-6 * s, c_eq, s);
+            for p in p0
+                .into_iter()
+                .flat_map(|p0| SCAN.iter().map(move |f| f * p0))
+            {
+                let chi2 = chi2_of(data, &sp.chain, make(k, p));
+                if chi2.is_finite() && best.as_ref().is_none_or(|b| chi2 < b.0) {
+                    best = Some((chi2, k, sp.chain.clone(), p));
                 }
             }
         }

@@ -55,6 +55,7 @@ pub const SPRING: Spring = Spring {
     range: (0.001, 4.0),
     valley_starts: &[1.2, 1.4],
     refine_evals: [30, 16],
+    small_signal_scan: false,
 };
 
 /// Identify backlash on the data, from the nominal chain.

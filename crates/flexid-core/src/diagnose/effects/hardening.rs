@@ -44,6 +44,7 @@ pub const SPRING: Spring = Spring {
     range: (1.2, 400.0),
     valley_starts: &[],
     refine_evals: [40, 24],
+    small_signal_scan: true,
 };
 
 /// Identify a hardening spring on the data, from the nominal chain: in a coupling or to

@@ -279,6 +279,10 @@ mod tests {
             std,
         };
         assert_eq!(param_json(&p(0.0, 50.0))["identifiable"], false);
+        // bounded on one side only: not identifiable, and no infinite number written
+        let one_sided = param_json(&p(1.9e84, f64::INFINITY));
+        assert_eq!(one_sided["identifiable"], false);
+        assert!(one_sided["std"].is_null());
         assert_eq!(param_json(&p(1e-3, 1e-5))["identifiable"], true);
         let none = param_json(&p(1e-3, f64::NAN));
         assert!(none["identifiable"].is_null() && none["std"].is_null());

@@ -675,51 +675,11 @@ pub fn fit_spring(
         }
     }
     // the small-signal chain the levels agree on, where each level's own fit is bent far
-    // from it ([`small_signal`]): a scan of the spring's parameter around the describing
-    // function's value on the coupling the high level changes most
-    let split = if spring.small_signal_scan {
-        small_signal::split(data, &lin_lo, lo, hi)
-    } else {
-        None
-    };
-    if let Some(sp) = split {
-        let level = &data.levels[hi];
-        // a sine of amplitude A stiffens a cubic as a Gaussian of RMS A/2 does
-        let s_hi: Vec<f64> = match tone_amplitude_nm(&level.rec) {
-            Some(a) => peak_deflections(&sp.chain, &level.f, a)
-                .into_iter()
-                .map(|p| p / 2.0)
-                .collect(),
-            None => simulate(&sp.chain, Nl::None, &level.rec.torque_cmd_nm, data.fs, 1).defl_rms,
-        };
-        let changed = (0..nominal.chain.masses().saturating_sub(1))
-            .map(|k| {
-                let c = sp.chain.chain.stiffness_nm_per_rad[k];
-                (
-                    k,
-                    c,
-                    small_signal::equivalent_stiffness(data, &sp.chain, k, &sp.changed_hi),
-                )
-            })
-            .max_by(|a, b| (a.2 / a.1).ln().abs().total_cmp(&(b.2 / b.1).ln().abs()));
-        if let Some((k, c_ss, c_eq)) = changed {
-            // under a tone the spring's deflection at the shifted resonance: the forcing's
-            // work per cycle balances the damper's, `A = F / (d ω)`, so the linear peak
-            // shrinks by the frequency ratio `sqrt(c_ss / c_eq)` where the resonance moved
-            let s = if tone_amplitude_nm(&level.rec).is_some() {
-                s_hi[k] * (c_ss / c_eq).sqrt()
-            } else {
-                s_hi[k]
-            };
-            let p0 = describing_solution(spring.equivalent, c_ss, 1e-6 * s, c_eq, s);
-            for p in p0
-                .into_iter()
-                .flat_map(|p0| SCAN.iter().map(move |f| f * p0))
-            {
-                let chi2 = chi2_of(data, &sp.chain, make(k, p));
-                if chi2.is_finite() && best.as_ref().is_none_or(|b| chi2 < b.0) {
-                    best = Some((chi2, k, sp.chain.clone(), p));
-                }
+    // from it ([`small_signal`])
+    if spring.small_signal_scan {
+        for (chi2, k, lin, p) in small_signal_starts(data, spring, &lin_lo, lo, hi, &make) {
+            if best.as_ref().is_none_or(|b| chi2 < b.0) {
+                best = Some((chi2, k, lin, p));
             }
         }
     }
@@ -757,8 +717,73 @@ pub fn fit_spring(
     }
     let (lin, p, sig, _) = best;
     let mut e = finish(data, lin, make(k, p), effect, pname, p, sig, false)?;
+    // a spring that does not act at the deflections measured (x_ref of 1e84 rad, a gap of
+    // 1e-8 rad): any value beyond it fits as well, so the data bound it on one side only
+    let deflection = m_hi[0].get(k).copied().unwrap_or(0.0);
+    if let Some(first) = e.params.first_mut() {
+        if ((spring.equivalent)(p, deflection) - 1.0).abs() < INACTIVE {
+            first.std = f64::INFINITY;
+        }
+    }
     e.params.push(EffectFit::param("coupling", k as f64, 0.0));
     Some(e)
+}
+
+/// The change of a coupling's equivalent stiffness below which a spring does not act at
+/// the highest level's deflection: a millionth, far below any stiffness a measured FRF
+/// resolves.
+const INACTIVE: f64 = 1e-6;
+
+/// The starts of a stiffening spring on the small-signal chain ([`small_signal::split`]):
+/// on the coupling the highest level `hi` changes most, the parameter at which the
+/// describing function gives the stiffening seen there ([`small_signal::equivalent_stiffness`])
+/// at the coupling's deflection, scanned over [`SCAN`]; each with its chi² (finite ones
+/// only). Under a tone the deflection is the one at the shifted resonance: the forcing's
+/// work per cycle balances the damper's, `A = F / (d ω)`, so the linear peak shrinks by the
+/// frequency ratio `sqrt(c_ss / c_eq)`; and a sine of amplitude `A` stiffens a cubic as a
+/// Gaussian of RMS `A/2` does. Empty where the levels do not split.
+fn small_signal_starts(
+    data: &Data,
+    spring: &Spring,
+    lin_lo: &LinExt,
+    lo: usize,
+    hi: usize,
+    make: &impl Fn(usize, f64) -> Nl,
+) -> Vec<(f64, usize, LinExt, f64)> {
+    let Some(sp) = small_signal::split(data, lin_lo, lo, hi) else {
+        return Vec::new();
+    };
+    let level = &data.levels[hi];
+    let tone = tone_amplitude_nm(&level.rec);
+    let deflection: Vec<f64> = match tone {
+        Some(a) => peak_deflections(&sp.chain, &level.f, a)
+            .into_iter()
+            .map(|p| p / 2.0)
+            .collect(),
+        None => simulate(&sp.chain, Nl::None, &level.rec.torque_cmd_nm, data.fs, 1).defl_rms,
+    };
+    let most_changed = (0..sp.chain.chain.masses().saturating_sub(1))
+        .map(|k| {
+            let c_eq = small_signal::equivalent_stiffness(data, &sp.chain, k, &sp.changed_hi);
+            (k, sp.chain.chain.stiffness_nm_per_rad[k], c_eq)
+        })
+        .filter(|(_, c, c_eq)| c.is_finite() && c_eq.is_finite())
+        .max_by(|a, b| (a.2 / a.1).ln().abs().total_cmp(&(b.2 / b.1).ln().abs()));
+    let Some((k, c_ss, c_eq)) = most_changed else {
+        return Vec::new();
+    };
+    let s = match tone {
+        Some(_) => deflection[k] * (c_ss / c_eq).sqrt(),
+        None => deflection[k],
+    };
+    let Some(p0) = describing_solution(spring.equivalent, c_ss, 1e-6 * s, c_eq, s) else {
+        return Vec::new();
+    };
+    SCAN.iter()
+        .map(|f| f * p0)
+        .map(|p| (chi2_of(data, &sp.chain, make(k, p)), k, sp.chain.clone(), p))
+        .filter(|start| start.0.is_finite())
+        .collect()
 }
 
 /// The simplex over coupling `k`'s stiffness `c` and damping, the inertias of its two

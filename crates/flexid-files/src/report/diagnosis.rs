@@ -341,6 +341,9 @@ mod param_tests {
         assert!(!t.contains("e12") && !t.contains("e21"), "{t}");
         // a delay of zero +- 50 s alike
         assert!(param_text(&p(0.0, 50.0)).contains("not identifiable"));
+        // a spring that does not act (x_ref of 1.9e84 rad, bounded on one side only)
+        let t = param_text(&p(1.9e84, f64::INFINITY));
+        assert!(t.contains("not identifiable") && !t.contains("e84"), "{t}");
         // an estimate keeps its number and uncertainty; none computed is said so
         assert_eq!(
             param_text(&p(412.0, 3.5)),

@@ -51,8 +51,13 @@ impl Param {
     /// Whether the data fix the parameter: its one-sigma uncertainty is at most the
     /// value's magnitude (a relative uncertainty above 100 % says nothing but that the fit
     /// ran to where the cost no longer changes: a current loop's bandwidth of 6e12 Hz
-    /// +- 3e21). `None`: no uncertainty was computed.
+    /// +- 3e21). An infinite uncertainty: the data bound the parameter on one side only (a
+    /// spring that does not act at the measured deflections), not identifiable. `None`: no
+    /// uncertainty was computed.
     pub fn identifiable(&self) -> Option<bool> {
+        if self.std == f64::INFINITY {
+            return Some(false);
+        }
         self.std.is_finite().then(|| self.std <= self.value.abs())
     }
 }

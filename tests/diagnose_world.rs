@@ -817,20 +817,11 @@ fn an_extra_body_merged_into_the_load_is_absorbed_by_the_world_s_refit() {
     );
 }
 
-/// A linear effect that dominates the gap does not hide an amplitude-dependent one beside
-/// it: on dev case C 70201 (a current loop at 416 Hz and a hardening coupling, 4 masses,
-/// 4 kHz stepped sine) the hardening alone does not improve on the nominal model (the
-/// loop's part of the gap is the larger), but the FRF changes between levels beyond the
-/// noise, which the loop cannot explain, so the amplitude-dependent candidates are tried
-/// on top of it and both are named.
-#[test]
-fn an_amplitude_dependent_effect_is_sought_beside_a_linear_one_when_the_levels_differ() {
+/// A case generated from its spec and diagnosed with its number of bodies.
+fn diagnosed(s: &world::cases::Spec) -> (world::cases::Case, flexid::diagnose::Diagnosis) {
     use flexid::diagnose::{diagnose, DiagnoseOptions};
-    use world::cases::Group;
-    use world::generate::generate;
-    let s = spec(Group::C, "hardening_stiffness+current_loop", 1, None);
     let dir = tempfile::tempdir().unwrap();
-    let case = generate(&s, dir.path());
+    let case = world::generate::generate(s, dir.path());
     let recs: Vec<_> = case
         .recordings
         .iter()
@@ -844,6 +835,20 @@ fn an_amplitude_dependent_effect_is_sought_beside_a_linear_one_when_the_levels_d
         },
     )
     .unwrap();
+    (case, d)
+}
+
+/// A linear effect that dominates the gap does not hide an amplitude-dependent one beside
+/// it: on dev case C 70201 (a current loop at 416 Hz and a hardening coupling, 4 masses,
+/// 4 kHz stepped sine) the hardening alone does not improve on the nominal model (the
+/// loop's part of the gap is the larger), but the FRF changes between levels beyond the
+/// noise, which the loop cannot explain, so the amplitude-dependent candidates are tried
+/// on top of it and both are named.
+#[test]
+fn an_amplitude_dependent_effect_is_sought_beside_a_linear_one_when_the_levels_differ() {
+    use world::cases::Group;
+    let s = spec(Group::C, "hardening_stiffness+current_loop", 1, None);
+    let (_, d) = diagnosed(&s);
     let named: Vec<&str> = d.effects.iter().map(|s| s.effect.name()).collect();
     println!("seed {}: effects {named:?}", s.seed);
     assert!(named.contains(&"current_loop"), "{named:?}");
@@ -853,11 +858,8 @@ fn an_amplitude_dependent_effect_is_sought_beside_a_linear_one_when_the_levels_d
 /// The hardening coupling of a case (its index and `x_ref`), diagnosed: the verdict, and
 /// the fitted coupling and `x_ref`.
 fn diagnose_hardening(s: &world::cases::Spec) -> ((usize, f64), String, usize, f64) {
-    use flexid::diagnose::{diagnose, DiagnoseOptions};
-    use world::generate::generate;
     use world::plant::Law;
-    let dir = tempfile::tempdir().unwrap();
-    let case = generate(s, dir.path());
+    let (case, d) = diagnosed(s);
     assert_eq!(case.truth.measurement.excitation.kind.name(), "swept_sine");
     let truth = case
         .truth
@@ -870,19 +872,6 @@ fn diagnose_hardening(s: &world::cases::Spec) -> ((usize, f64), String, usize, f
             _ => None,
         })
         .expect("a hardening coupling");
-    let recs: Vec<_> = case
-        .recordings
-        .iter()
-        .map(|p| flexid::recording::read_recording(p).unwrap())
-        .collect();
-    let d = diagnose(
-        &recs,
-        &DiagnoseOptions {
-            masses: case.truth.masses,
-            ..DiagnoseOptions::default()
-        },
-    )
-    .unwrap();
     let verdict = d.verdict.name().to_string();
     let Some(step) = d.effects.first() else {
         return (truth, verdict, usize::MAX, f64::NAN);

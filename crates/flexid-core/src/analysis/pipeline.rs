@@ -156,24 +156,47 @@ pub fn analyze(rec: &Recording, opts: &AnalysisOptions) -> Result<Analysis, Anal
 /// whose lines are too few or too noisy for an identification still has).
 pub fn measure_only(rec: &Recording, opts: &AnalysisOptions) -> Result<Analysis, AnalysisError> {
     let measured = estimate_frf(rec, opts.band_hz)?;
+    let mut notes = measurement_notes(rec, &measured);
+    let supported = supported_lines(&measured.frf, opts, &mut notes);
+    let nothing = Detection {
+        pairs: Vec::new(),
+        peaks: Vec::new(),
+        unconfirmed: Vec::new(),
+        rejected: Vec::new(),
+        notes: Vec::new(),
+    };
+    let delay = rec.sidecar.io_delay_samples.unwrap_or(0);
+    Ok(before_the_model(
+        rec, measured, delay, nothing, notes, supported, None,
+    ))
+}
+
+/// The notes every analysis starts with: the recording's source, how the FRF was estimated.
+fn measurement_notes(rec: &Recording, measured: &EstimatedFrf) -> Vec<String> {
     let mut notes = Vec::new();
     if let Some(src) = &rec.sidecar.source {
         notes.push(format!("source: {src}"));
     }
     notes.push(measured.choices.clone());
-    let supported = supported_lines(&measured.frf, opts, &mut notes);
-    Ok(Analysis {
+    notes
+}
+
+/// An analysis of the measurement and its pairs, before any model is identified.
+fn before_the_model(
+    rec: &Recording,
+    measured: EstimatedFrf,
+    delay: u32,
+    detection: Detection,
+    notes: Vec<String>,
+    supported: Option<[f64; 2]>,
+    ground: Option<GroundDamperOut>,
+) -> Analysis {
+    Analysis {
         measured,
         sample_rate_hz: rec.sample_rate_hz,
-        delay_samples: rec.sidecar.io_delay_samples.unwrap_or(0),
+        delay_samples: delay,
         total_inertia: None,
-        detection: Detection {
-            pairs: Vec::new(),
-            peaks: Vec::new(),
-            unconfirmed: Vec::new(),
-            rejected: Vec::new(),
-            notes: Vec::new(),
-        },
+        detection,
         paper: None,
         exact: None,
         fit: None,
@@ -183,8 +206,8 @@ pub fn measure_only(rec: &Recording, opts: &AnalysisOptions) -> Result<Analysis,
         notes,
         time_cap: None,
         supported_band_hz: supported,
-        ground_damper: None,
-    })
+        ground_damper: ground,
+    }
 }
 
 /// [`analyze`] from an FRF estimated beforehand from `rec` (and possibly corrected, e.g. a
@@ -268,11 +291,7 @@ fn measure_and_detect(
     opts: &AnalysisOptions,
     delay: u32,
 ) -> Result<(Analysis, Frf, bool), AnalysisError> {
-    let mut notes = Vec::new();
-    if let Some(src) = &rec.sidecar.source {
-        notes.push(format!("source: {src}"));
-    }
-    notes.push(measured.choices.clone());
+    let mut notes = measurement_notes(rec, &measured);
     let fittable = matches!(
         measured.frf.kind,
         FrfKind::DifferencedVelocity | FrfKind::Position
@@ -309,23 +328,7 @@ fn measure_and_detect(
     };
     let detection = detect_pairs(&work, &detect_opts)?;
     notes.extend(detection.notes.iter().cloned());
-    let analysis = Analysis {
-        measured,
-        sample_rate_hz: rec.sample_rate_hz,
-        delay_samples: delay,
-        total_inertia: None,
-        detection,
-        paper: None,
-        exact: None,
-        fit: None,
-        orders: Vec::new(),
-        model: None,
-        model_frf: None,
-        notes,
-        time_cap: None,
-        supported_band_hz: supported,
-        ground_damper: ground,
-    };
+    let analysis = before_the_model(rec, measured, delay, detection, notes, supported, ground);
     Ok((analysis, work, fittable))
 }
 

@@ -282,6 +282,12 @@ fn target(l: &Level, max_lines: usize) -> Target {
         v.dedup();
         v
     };
+    target_on(l, idx)
+}
+
+/// The target of level `l`'s lines `idx`: their frequencies, responses and weights
+/// `|H| / sigma`.
+pub(crate) fn target_on(l: &Level, idx: Vec<usize>) -> Target {
     Target {
         f: idx.iter().map(|&i| l.f[i]).collect(),
         h: idx.iter().map(|&i| l.h[i]).collect(),

@@ -14,7 +14,7 @@
 
 use super::effects::{fit_linear, model_on, Lin, Target};
 use super::lti::LinExt;
-use super::{Data, Level};
+use super::{target_on, Data};
 
 /// The small-signal chain and the highest level's lines where the FRF changed.
 pub struct Split {
@@ -27,20 +27,6 @@ pub struct Split {
 /// `ln 100`: noise alone puts 1 % of the lines above it (`|ΔH|² / var` of a complex
 /// difference is exponential with unit mean).
 const AGREE_Z2: f64 = 4.605_170_185_988_091;
-
-fn target(l: &Level, idx: Vec<usize>, band_limited: bool) -> Target {
-    Target {
-        f: idx.iter().map(|&i| l.f[i]).collect(),
-        h: idx.iter().map(|&i| l.h[i]).collect(),
-        w: idx
-            .iter()
-            .map(|&i| l.h[i].norm() / l.var[i].sqrt())
-            .collect(),
-        io_delay: l.io_delay,
-        band_limited,
-        idx,
-    }
-}
 
 /// The chain fitted (from `start`) on the lines where the lowest level `lo` and the highest
 /// `hi` agree within the noise ([`AGREE_Z2`]), and the highest level's other lines. `None`
@@ -71,12 +57,11 @@ pub fn split(data: &Data, start: &LinExt, lo: usize, hi: usize) -> Option<Split>
     if changed.len() < 4 || 2 * keep_a.len() < 4 * params {
         return None;
     }
-    let limited = data.targets.first().is_some_and(|t| t.band_limited);
-    let agree = [target(a, keep_a, limited), target(b, keep_b, limited)];
+    let agree = [target_on(a, keep_a), target_on(b, keep_b)];
     let chain = fit_linear(data, &agree, Lin::None, start, 30)?.0;
     Some(Split {
         chain,
-        changed_hi: target(b, changed, limited),
+        changed_hi: target_on(b, changed),
     })
 }
 

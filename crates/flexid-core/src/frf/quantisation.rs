@@ -276,19 +276,26 @@ pub fn add_sweep_tone_variance(frf: &mut super::Frf, q: f64, torque_cmd: &[f64])
     }
     let fs = frf.sample_rate_hz;
     for i in 0..frf.freq_hz.len() {
-        let d2 = match frf.kind {
-            FrfKind::DifferencedVelocity => {
-                let w = 2.0 * std::f64::consts::PI * frf.freq_hz[i] / fs;
-                fs * fs * (2.0 - 2.0 * w.cos())
-            }
-            _ => 1.0,
-        };
+        let d2 = differencing_gain2(frf.kind, frf.freq_hz[i], fs);
         let amplitude = frf.h[i].norm() / d2.sqrt() * a;
         let tone = tone_error_power_bound(q, amplitude, 0.0);
         let v = tone * d2 / (a * a);
         if v.is_finite() {
             frf.var[i] += v;
         }
+    }
+}
+
+/// `|D(ω)|²` of the operator that turns the recorded signal into the estimator's output:
+/// `fs (1 - e^(-jωT))` for a differenced position, 1 otherwise.
+fn differencing_gain2(kind: FrfKind, freq_hz: f64, sample_rate_hz: f64) -> f64 {
+    match kind {
+        FrfKind::DifferencedVelocity => {
+            let w = 2.0 * std::f64::consts::PI * freq_hz / sample_rate_hz;
+            // |1 - e^{-jw}|² = 2 - 2 cos w
+            sample_rate_hz * sample_rate_hz * (2.0 - 2.0 * w.cos())
+        }
+        _ => 1.0,
     }
 }
 
@@ -305,14 +312,7 @@ pub fn line_variance(
     period_samples: usize,
     u: Complex64,
 ) -> f64 {
-    let d2 = match kind {
-        FrfKind::DifferencedVelocity => {
-            let w = 2.0 * std::f64::consts::PI * freq_hz / sample_rate_hz;
-            // |1 - e^{-jw}|² = 2 - 2 cos w
-            sample_rate_hz * sample_rate_hz * (2.0 - 2.0 * w.cos())
-        }
-        _ => 1.0,
-    };
+    let d2 = differencing_gain2(kind, freq_hz, sample_rate_hz);
     let v = repeating_var * d2 / period_samples as f64 / u.norm_sqr();
     if v.is_finite() {
         v

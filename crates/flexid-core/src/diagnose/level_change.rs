@@ -1,8 +1,64 @@
 //! A set of linear effects against an FRF that changes between levels.
 
+use super::distortion::{self, LevelChange};
 use super::effects::EffectFit;
-use super::{noise, scan, Data, Effect, ResidualKind, Step};
+use super::{noise, scan, Data, Effect, Level, Located, ResidualKind, Step};
 use crate::Complex64;
+
+/// How the measured FRF changes between the levels of `data`.
+pub struct Changes {
+    /// Every pair of levels, line by line.
+    pub changes: Vec<LevelChange>,
+    /// The most significant run of lines of the change ([`scan`]).
+    pub change_local: Option<Located>,
+    /// Significant over the whole band of a pair or on that run.
+    pub changed: bool,
+}
+
+/// The change of the FRF between every two levels of `data`, over the band and on its
+/// most significant run of lines (a ground spring changes the lowest lines only).
+pub fn between_levels(data: &Data) -> Changes {
+    fn lines_of(l: &Level) -> distortion::LevelLines<'_> {
+        distortion::LevelLines {
+            f: &l.f,
+            h: &l.h,
+            var: &l.var,
+            dof: noise::dof(l.averages),
+        }
+    }
+    let mut changes = Vec::new();
+    for a in 0..data.levels.len() {
+        for b in a + 1..data.levels.len() {
+            changes.push(distortion::level_change(
+                a,
+                b,
+                &lines_of(&data.levels[a]),
+                &lines_of(&data.levels[b]),
+            ));
+        }
+    }
+    let change_local = scan::scan(
+        &changes
+            .iter()
+            .map(|c| scan::Series {
+                f: &c.line_hz,
+                z2: &c.line_z2,
+                dof: &c.line_dof,
+            })
+            .collect::<Vec<_>>(),
+    )
+    .map(|w| Located {
+        pair: Some((changes[w.series].a, changes[w.series].b)),
+        ..Located::from(w)
+    });
+    let changed =
+        changes.iter().any(|c| c.significant) || change_local.is_some_and(|w| w.window.significant);
+    Changes {
+        changes,
+        change_local,
+        changed,
+    }
+}
 
 /// Whether `effects` are all linear at every amplitude while the FRF changes between levels
 /// beyond the noise on a localised run of lines ([`ResidualKind::change_local`]), and the
@@ -198,6 +254,26 @@ mod tests {
         assert!(!misses(&with_friction, &residual(true, low), &mut notes));
         assert!(!misses(&[], &residual(true, low), &mut notes));
         assert_eq!(notes.len(), 1);
+    }
+
+    /// Two equal levels do not change; a level 10 % (ten line sigmas) higher on a run of
+    /// lines does, on a run that starts among them.
+    #[test]
+    fn levels_change_where_one_is_higher_than_the_other() {
+        let (mut data, _) = data();
+        let mut second = data.levels[0].clone();
+        data.levels.push(second.clone());
+        assert!(!between_levels(&data).changed);
+        for (h, f) in second.h.iter_mut().zip(&second.f) {
+            if *f < 10.0 {
+                *h *= 1.1;
+            }
+        }
+        data.levels[1] = second;
+        let c = between_levels(&data);
+        assert!(c.changed);
+        let w = c.change_local.expect("a run of lines").window;
+        assert!(w.significant && w.lo_hz < 10.0, "{w:?}");
     }
 
     /// A change between levels far from where the set acts does not refute the set: it is

@@ -1139,12 +1139,18 @@ impl Next<'_> {
         // gravity); the amplitude-dependent ones only when they did on their own, or when
         // only linear effects are named and the FRF changes between levels
         let changes_unexplained = self.level_change && named.iter().all(|e| e.is_linear());
+        // an amplitude-dependent effect shows itself by the change of the FRF between
+        // levels: where the one named before is divided out (`data`) and leaves no
+        // significant change, a further one has nothing of its own to show beside what a
+        // linear effect would (and its fits, simulations, would cost for nothing)
+        let change_left = named.iter().all(|e| e.is_linear())
+            || data.levels.len() < 2
+            || level_change::between_levels(data).changed;
         let mut wanted = |e: Effect| {
             !named.contains(&e)
                 && (opts.force_nonlinear
                     || e.is_linear()
-                    || screened.contains(&e)
-                    || changes_unexplained)
+                    || (change_left && (screened.contains(&e) || changes_unexplained)))
                 && steps.go(format_args!("{e} (forward selection step {step})"))
         };
         let mut fits: Vec<EffectFit> = Vec::new();
@@ -1685,43 +1691,11 @@ fn residual_kind(data: &Data, nominal: &EffectFit) -> ResidualKind {
             d
         })
         .collect();
-    fn lines_of(l: &Level) -> distortion::LevelLines<'_> {
-        distortion::LevelLines {
-            f: &l.f,
-            h: &l.h,
-            var: &l.var,
-            dof: noise::dof(l.averages),
-        }
-    }
-    let mut changes = Vec::new();
-    for a in 0..data.levels.len() {
-        for b in a + 1..data.levels.len() {
-            changes.push(distortion::level_change(
-                a,
-                b,
-                &lines_of(&data.levels[a]),
-                &lines_of(&data.levels[b]),
-            ));
-        }
-    }
-    // where the FRF changes between levels on a few lines only (a ground spring at the
-    // lowest lines): the localised scan over every pair of levels
-    let change_local = scan::scan(
-        &changes
-            .iter()
-            .map(|c| scan::Series {
-                f: &c.line_hz,
-                z2: &c.line_z2,
-                dof: &c.line_dof,
-            })
-            .collect::<Vec<_>>(),
-    )
-    .map(|w| Located {
-        pair: Some((changes[w.series].a, changes[w.series].b)),
-        ..Located::from(w)
-    });
-    let changed =
-        changes.iter().any(|c| c.significant) || change_local.is_some_and(|w| w.window.significant);
+    let level_change::Changes {
+        changes,
+        change_local,
+        changed,
+    } = level_change::between_levels(data);
     // the same 6 dB for the realisations' spread over the noise as for the detection lines
     let nonlinear = changed
         || levels.iter().any(|l| {

@@ -177,6 +177,13 @@ pub struct Truth {
     /// The right verdict where one is required (A, B, D, E: `none`, an effect,
     /// `unexplained`); None for pairs (both must be among the effects named).
     pub verdict: Option<String>,
+    /// A library effect (A, B) whose response had no steady state at any size tried (a
+    /// load on a cubic spring to the ground under a stepped sine: after each step the load
+    /// swings slowly about the ground on the spring, period after period differently): the
+    /// records hold no periodic FRF, and `unexplained` (the gap is real, no model of a
+    /// steady state explains it) is right beside the effect's name.
+    #[serde(default)]
+    pub no_steady_state: bool,
     /// Where a cause outside the library acts on the FRF [Hz] (group D).
     pub band_hz: Option<[f64; 2]>,
     pub sizes: Vec<Sizing>,

@@ -161,7 +161,7 @@ impl Design {
     /// logarithmic sweep spends a time `~ 1/f` per hertz, so its `E` falls as `1/f`: from
     /// the whole record's spectrum, `sum |U_j|^2 / N` over the bins within half a line
     /// spacing (the `H1` estimate over them). (A stepped sine's energy sits at its spots:
-    /// not modelled here; the world judges it by the reference multisine.)
+    /// [`super::visibility::Reference::line_energy`].)
     pub fn line_energy(&self, rms_nm: f64, lines_hz: &[f64]) -> Vec<f64> {
         let mut e = vec![0.0; lines_hz.len()];
         if lines_hz.is_empty() {

@@ -24,7 +24,8 @@ use super::simulator::Sim;
 use super::substeps::{substeps, Peaks};
 use super::visibility::{
     acting_band, delta_linear, delta_of, detectable, ln_h1_lines, measured_sigma_ln,
-    repeated_sigma_ln, sigma_ln, simulated_response, size_for, visibility, Projector, Reference,
+    measured_sigma_stepped, repeated_sigma_ln, sigma_ln, simulated_response, size_for, visibility,
+    Projector, Reference, Stepped,
 };
 use flexid::model::Chain;
 use flexid::recording::{write_recording, Recording, Sidecar};
@@ -115,9 +116,26 @@ fn draw_world(spec: &Spec, rng: &mut impl Rng, level_scale: f64) -> World {
     plant.sensor.current_noise_nm = 2e-3 * rms_low;
     let phase_seed = rng.random();
     let own = own_multisine(&design, &levels);
+    let stepped = (design.kind == Kind::SteppedSine).then(|| {
+        levels
+            .iter()
+            .map(|&r| {
+                let (u, info) = design.generate(r);
+                Stepped {
+                    u,
+                    blocks: info.blocks,
+                }
+            })
+            .collect::<Vec<_>>()
+    });
+    let lines_hz = match (&own, &stepped) {
+        (Some(o), _) => o.0.clone(),
+        (None, Some(st)) => st[0].blocks.iter().map(|b| b.frequency_hz).collect(),
+        (None, None) => grid.clone(),
+    };
     let reference = Reference {
         fs_hz: fs,
-        lines_hz: own.as_ref().map_or_else(|| grid.clone(), |o| o.0.clone()),
+        lines_hz,
         period_samples: design.period_samples(),
         periods: design.periods,
         levels_rms_nm: levels.clone(),
@@ -129,6 +147,8 @@ fn draw_world(spec: &Spec, rng: &mut impl Rng, level_scale: f64) -> World {
                 .map(|&r| design.line_energy(r, &grid))
                 .collect()
         }),
+        stepped,
+        grid_hz: grid.clone(),
     };
     let motion = levels
         .iter()
@@ -160,7 +180,7 @@ fn draw_world(spec: &Spec, rng: &mut impl Rng, level_scale: f64) -> World {
 pub fn peaks_of(plant: &Plant, ctx: &Context) -> Peaks {
     let r = analytic::rms_motion(
         plant,
-        &ctx.reference.lines_hz,
+        ctx.reference.motion_lines_hz(),
         ctx.reference.levels_rms_nm[ctx.high()],
     );
     Peaks {
@@ -412,8 +432,8 @@ fn gravity_level_scale(plan: &Plan) -> Option<f64> {
         }
         _ => {
             let s_max = (-2.0 * (1.0 - GRAVITY_LINEARITY).ln()).sqrt();
-            analytic::rms_motion(&plan.plant, &plan.ctx.reference.lines_hz, rms).position_rad
-                [g.body]
+            analytic::rms_motion(&plan.plant, plan.ctx.reference.motion_lines_hz(), rms)
+                .position_rad[g.body]
                 / s_max
         }
     };
@@ -607,6 +627,19 @@ pub fn measure(plan: Plan, dir: &Path) -> Case {
                 &plan.sigma[i],
             ));
         }
+        if let Some(st) = &ctx.reference.stepped {
+            let reading: Vec<f64> = if velocity {
+                out.iter().map(|s| s.velocity_rad_s).collect()
+            } else {
+                out.iter().map(|s| s.position_rad).collect()
+            };
+            measured_sigma.push(measured_sigma_stepped(
+                &st[i],
+                &reading,
+                !velocity,
+                &plan.sigma[i],
+            ));
+        }
         if sweep {
             let runs: Vec<Vec<Complex64>> = (0..REPEATS)
                 .map(|j| {
@@ -651,7 +684,7 @@ pub fn measure(plan: Plan, dir: &Path) -> Case {
     // each effect judged again against the scatter its recordings show
     let mut sizes = plan.sizes.clone();
     let mut effects = plan.effects.clone();
-    if own_multisine || sweep {
+    if own_multisine || sweep || ctx.reference.stepped.is_some() {
         for (s, r) in sizes.iter_mut().zip(&plan.residuals) {
             s.visibility_measured = Some(
                 r.as_ref()
@@ -681,6 +714,10 @@ pub fn measure(plan: Plan, dir: &Path) -> Case {
         masses: plan.chain.masses(),
         effects,
         verdict,
+        no_steady_state: matches!(spec.group, Group::A | Group::B)
+            && sizes.iter().any(|s| {
+                s.answer != "unexplained" && s.visibility >= f64::MAX && shows(s, plan.detectable)
+            }),
         band_hz: plan.band_hz,
         sizes,
         visibility: plan.visibility,

@@ -72,6 +72,7 @@ pub fn overlaps(a: [f64; 2], b: [f64; 2]) -> bool {
 /// with the level (no library effect is named).
 pub fn right(truth: &Truth, verdict: &str, effects: &[String], bands: &[[f64; 2]]) -> bool {
     match truth.group {
+        Group::A | Group::B if truth.no_steady_state && verdict == "unexplained" => true,
         Group::A | Group::B | Group::E => truth.verdict.as_deref() == Some(verdict),
         // a pair neither of whose effects the data can show asks for `none`
         Group::C if truth.effects.is_empty() => verdict == "none",

@@ -4,10 +4,13 @@
 //! acts.
 //!
 //! The reference measurement is the case's own multisine where it measures with one
-//! (Schroeder, random-phase or odd random-phase; its excited lines); for a sweep, the full
-//! grid with the sweep's own energy per line ([`Reference::energy`]; its error then
-//! measured on repeated recordings, [`repeated_sigma_ln`]); else a random-phase
-//! multisine on the full grid of the case's band, at the case's two levels, `periods` steady periods of the case's period. Per
+//! (Schroeder, random-phase or odd random-phase; its excited lines); for a stepped sine,
+//! the stepped sine itself (its spots, each block's steady periods and tone:
+//! [`Reference::stepped`]); for a sweep, the full grid with the sweep's own energy per
+//! line ([`Reference::energy`]; its error then measured on repeated recordings,
+//! [`repeated_sigma_ln`]), the response simulated under a random-phase multisine on the
+//! full grid of the case's band, at the case's two levels, `periods` steady periods of
+//! the case's period. Per
 //! line, the one-sigma scatter of `ln H` is
 //! `s^2 = 4 (v_meas / |H|^2 + s_w^2 |H_w / H|^2) / (N P A^2)`: `v_meas` the white noise of
 //! the reading per sample (`q^2 / 12` of an encoder count `q` for a position,
@@ -17,8 +20,9 @@
 //! `sqrt(mean over the lines of both levels of |D|^2 / s^2)`: the RMS of the change in
 //! units of the line noise (equal to the diagnosis's systematic gap over its noise RMS,
 //! inverse-variance weighted, when the nominal model is the true one). Nonlinear plants'
-//! `H` comes from noise-free simulations (two transient periods, one analysed),
-//! the linear ones' from [`super::analytic`].
+//! `H` comes from noise-free simulations (two transient periods, one analysed; a stepped
+//! sine's whole record, each block's last period analysed), the linear ones' from
+//! [`super::analytic`].
 
 use super::analytic;
 use super::plant::{Output, Plant};
@@ -50,10 +54,54 @@ pub struct Reference {
     /// reference multisine's, `N P A^2 / 4` on every line. A line without energy is not
     /// measured (infinite scatter) and not counted.
     pub energy: Option<Vec<Vec<f64>>>,
+    /// The case's own stepped sine, when it measures with one: its signal and blocks per
+    /// level (its spots are then `lines_hz`, one per block). A tone puts the whole RMS at
+    /// one frequency, where a multisine spreads it over the grid: a nonlinear effect is
+    /// driven much harder at a spot than by the reference multisine at the same RMS (a
+    /// cubic spring to the ground without a steady state under the stepped sine was sized
+    /// on a multisine it hardly moved), and only the spots are measured. So the world judges
+    /// it on the stepped sine itself.
+    pub stepped: Option<Vec<Stepped>>,
+    /// The design's full grid [Hz]: where the small-signal motion is reckoned (the RMS
+    /// spread evenly over it), whatever lines are judged.
+    pub grid_hz: Vec<f64>,
+}
+
+/// One level of a stepped sine: the command [N m] and its blocks (one spot each).
+#[derive(Debug, Clone)]
+pub struct Stepped {
+    pub u: Vec<f64>,
+    pub blocks: Vec<flexid::excitation::SteppedBlock>,
+}
+
+impl Stepped {
+    /// The DFT ratio `Y / U` at block `b`'s line over its period `p` (0-based from the
+    /// block's start, settle periods included), `y` the reading differenced.
+    fn ratio(&self, b: &flexid::excitation::SteppedBlock, y: &[f64], p: usize) -> Complex64 {
+        let n = b.period_samples;
+        let w = -2.0 * std::f64::consts::PI * b.line as f64 / n as f64;
+        let (mut uf, mut yf) = (Complex64::new(0.0, 0.0), Complex64::new(0.0, 0.0));
+        let from = b.start + p * n;
+        for j in 0..n {
+            let e = Complex64::from_polar(1.0, w * j as f64);
+            uf += self.u[from + j] * e;
+            yf += y[from + j] * e;
+        }
+        yf / uf
+    }
 }
 
 impl Reference {
     /// One line's amplitude [N m] at level `i` (the RMS spread evenly over the lines).
+    /// Where the small-signal motion is reckoned: the judged lines, or the full grid for a
+    /// stepped sine (whose spots hold the whole RMS one at a time).
+    pub fn motion_lines_hz(&self) -> &[f64] {
+        match self.stepped {
+            Some(_) => &self.grid_hz,
+            None => &self.lines_hz,
+        }
+    }
+
     pub fn line_amplitude_nm(&self, i: usize) -> f64 {
         self.levels_rms_nm[i] * (2.0 / self.lines_hz.len() as f64).sqrt()
     }
@@ -61,6 +109,17 @@ impl Reference {
     /// The excitation's energy [N^2 m^2 x samples] the estimate averages on each line at
     /// level `i` (see [`Reference::energy`]).
     pub fn line_energy(&self, i: usize) -> Vec<f64> {
+        if let Some(st) = &self.stepped {
+            // each spot's steady periods, its tone's amplitude: N A^2 / 4
+            return st[i]
+                .blocks
+                .iter()
+                .map(|b| {
+                    let n = (b.periods * b.period_samples) as f64;
+                    n * b.amplitude_nm * b.amplitude_nm / 4.0
+                })
+                .collect();
+        }
         match &self.energy {
             Some(e) => e[i].clone(),
             None => {
@@ -298,8 +357,11 @@ pub fn delta_linear(without: &Plant, with: &Plant, r: &Reference) -> Vec<Vec<Com
 /// `ln(H_last / H_before)` per line and level: how far the response is from periodic. Only
 /// ratios of such responses are used.
 pub fn simulated_response(plant: &Plant, r: &Reference, peaks: &Peaks) -> Simulated {
-    let n = r.period_samples;
     let steps = substeps(plant, r.fs_hz, peaks);
+    if let Some(st) = &r.stepped {
+        return stepped_response(plant, r.fs_hz, steps, st);
+    }
+    let n = r.period_samples;
     let mut planner = RealFftPlanner::<f64>::new();
     let fft = planner.plan_fft_forward(n);
     let spectrum = |x: &[f64]| spectrum_by(fft.as_ref(), x);
@@ -334,6 +396,77 @@ pub fn simulated_response(plant: &Plant, r: &Reference, peaks: &Peaks) -> Simula
         })
         .collect();
     Simulated { response, change }
+}
+
+/// [`simulated_response`] on a stepped sine: the whole command of each level simulated
+/// without noise (centred on the record, as it is measured), each spot's response over the
+/// last steady period of its block, the change from the period before.
+fn stepped_response(plant: &Plant, fs_hz: f64, steps: usize, st: &[Stepped]) -> Simulated {
+    let mut change = Vec::new();
+    let response = st
+        .iter()
+        .map(|s| {
+            let mut sim = Sim::new(plant, fs_hz, steps, 0, true);
+            sim.start_centred(&s.u);
+            let pos: Vec<f64> = sim.run(&s.u).iter().map(|x| x.position_rad).collect();
+            let y: Vec<f64> = (0..pos.len())
+                .map(|j| pos[j] - pos[j.saturating_sub(1)])
+                .collect();
+            let (last, before): (Vec<Complex64>, Vec<Complex64>) = s
+                .blocks
+                .iter()
+                .map(|b| {
+                    let p = b.settle_periods + b.periods - 1;
+                    (s.ratio(b, &y, p), s.ratio(b, &y, p - 1))
+                })
+                .unzip();
+            change.push(
+                last.iter()
+                    .zip(&before)
+                    .map(|(a, b)| (a / b).ln())
+                    .collect(),
+            );
+            last
+        })
+        .collect();
+    Simulated { response, change }
+}
+
+/// The scatter of `ln H` per spot of one level as a recording of the case's stepped sine
+/// shows it: the spread of the per-period responses over each block's steady periods (the
+/// reading differenced when a position), as the standard deviation of their mean, over
+/// the model's `sigma` and smoothed like [`measured_sigma_ln`]'s. A spot whose response
+/// does not settle (no steady state) scatters from period to period.
+pub fn measured_sigma_stepped(
+    st: &Stepped,
+    reading: &[f64],
+    differenced: bool,
+    sigma: &[f64],
+) -> Vec<f64> {
+    let y: Vec<f64> = (0..reading.len())
+        .map(|j| {
+            if differenced {
+                reading[j] - reading[j.saturating_sub(1)]
+            } else {
+                reading[j]
+            }
+        })
+        .collect();
+    let ratio: Vec<f64> = st
+        .blocks
+        .iter()
+        .zip(sigma)
+        .map(|(b, sg)| {
+            let hs: Vec<Complex64> = (b.settle_periods..b.settle_periods + b.periods)
+                .map(|p| st.ratio(b, &y, p))
+                .collect();
+            let pf = hs.len() as f64;
+            let mean = hs.iter().sum::<Complex64>() / pf;
+            let var = hs.iter().map(|h| (h - mean).norm_sqr()).sum::<f64>() / (pf - 1.0).max(1.0);
+            (var / pf).sqrt() / mean.norm() / sg
+        })
+        .collect();
+    smoothed(&ratio, sigma)
 }
 
 /// A noise-free simulated response (see [`simulated_response`]).

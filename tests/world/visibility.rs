@@ -402,8 +402,7 @@ pub fn simulated_response(plant: &Plant, r: &Reference, peaks: &Peaks) -> Simula
 /// without noise (centred on the record, as it is measured), each spot's response over the
 /// last steady period of its block, the change from the period before.
 fn stepped_response(plant: &Plant, fs_hz: f64, steps: usize, st: &[Stepped]) -> Simulated {
-    let mut change = Vec::new();
-    let response = st
+    let (response, before): (Vec<Vec<Complex64>>, Vec<Vec<Complex64>>) = st
         .iter()
         .map(|s| {
             let mut sim = Sim::new(plant, fs_hz, steps, 0, true);
@@ -412,24 +411,19 @@ fn stepped_response(plant: &Plant, fs_hz: f64, steps: usize, st: &[Stepped]) -> 
             let y: Vec<f64> = (0..pos.len())
                 .map(|j| pos[j] - pos[j.saturating_sub(1)])
                 .collect();
-            let (last, before): (Vec<Complex64>, Vec<Complex64>) = s
-                .blocks
+            s.blocks
                 .iter()
                 .map(|b| {
                     let p = b.settle_periods + b.periods - 1;
                     (s.ratio(b, &y, p), s.ratio(b, &y, p - 1))
                 })
-                .unzip();
-            change.push(
-                last.iter()
-                    .zip(&before)
-                    .map(|(a, b)| (a / b).ln())
-                    .collect(),
-            );
-            last
+                .unzip()
         })
-        .collect();
-    Simulated { response, change }
+        .unzip();
+    Simulated {
+        change: delta_of(&before, &response),
+        response,
+    }
 }
 
 /// The scatter of `ln H` per spot of one level as a recording of the case's stepped sine

@@ -19,6 +19,7 @@ pub mod json;
 pub mod kept_outputs;
 pub mod level_change;
 pub mod localise;
+pub mod loop_free;
 pub mod lti;
 pub mod modal;
 pub mod nlsim;
@@ -728,7 +729,13 @@ pub fn diagnose(recs: &[Recording], opts: &DiagnoseOptions) -> Result<Diagnosis,
     }
     // an acceleration or velocity response is diagnosed as the position it integrates to
     let recs: Vec<Recording> = recs.iter().map(acceleration::as_position).collect();
-    let data = prepare(&recs, opts)?;
+    let mut data = prepare(&recs, opts)?;
+    // the chain behind the loop the drive's torque reading shows: a start of the
+    // current-loop candidate ([`loop_free`])
+    let loop_start = loop_free::start(&data, opts.masses.max(1), opts.band_hz, &opts.budget);
+    if let Some(tp) = data.torque.as_mut() {
+        tp.loop_free = loop_start;
+    }
     stage.lap("prepare");
     let mut steps = Steps::new(&opts.budget);
     if !steps.go("nominal chain") {

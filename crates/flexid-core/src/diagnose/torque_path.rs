@@ -86,6 +86,11 @@ pub struct TorquePath {
     /// The best current loop (order 1 or 2, the one the BIC prefers).
     pub with_loop: PathFit,
     pub shape: Shape,
+    /// The chain identified with the loop the reading shows divided out of the motion's
+    /// measurement ([`super::loop_free::start`]), with that loop: a start of the
+    /// current-loop candidate in the basin of the chain behind the loop (set by the
+    /// diagnosis; `None` when the reading shows no loop).
+    pub loop_free: Option<super::lti::LinExt>,
 }
 
 impl TorquePath {
@@ -119,6 +124,7 @@ impl TorquePath {
                 .collect::<Vec<_>>(),
         );
         let mut tp = TorquePath {
+            loop_free: None,
             levels,
             fs,
             noise,

@@ -24,6 +24,13 @@ pub fn fit(data: &Data, nominal: &LinExt) -> Option<EffectFit> {
         .as_ref()
         .filter(|tp| tp.shape == Shape::Loop)
         .and_then(|tp| tp.with_loop.lp);
+    // and the chain behind it ([`crate::diagnose::loop_free`]), where the candidate is
+    // fitted on the nominal chain alone (not on top of another linear extension)
+    let behind = data
+        .torque
+        .as_ref()
+        .and_then(|tp| tp.loop_free.clone())
+        .filter(|_| Lin::carried_by(nominal) == Lin::None);
     for (order, k) in [(1u8, Lin::Loop1), (2, Lin::Loop2)] {
         let from_reading = read.filter(|l| l.order == order).map(|l| {
             let mut s = nominal.clone();
@@ -44,6 +51,11 @@ pub fn fit(data: &Data, nominal: &LinExt) -> Option<EffectFit> {
                 s
             })
             .chain(from_reading)
+            .chain(
+                behind
+                    .clone()
+                    .filter(|b| b.current_loop.map(|l| l.order) == Some(order)),
+            )
             .collect();
         let Some((m, r)) = fit_best_start(data, k, &starts, 40, 1) else {
             continue;

@@ -9,7 +9,7 @@
 
 use super::lti::LinExt;
 use super::Data;
-use crate::analysis::{analyze_estimate, EstimatedFrf};
+use crate::analysis::{analyze_estimate, Analysis, EstimatedFrf};
 
 /// Start of the nominal `n`-body chain with viscous friction to the ground: the chain
 /// identified on the highest level's measurement with its ground damper taken out, and
@@ -21,16 +21,28 @@ pub fn start(
     band: Option<[f64; 2]>,
     budget: &crate::identify::fit::FitBudget,
 ) -> Option<LinExt> {
-    let top = super::top_level(data);
-    let level = &data.levels[top];
-    let est: EstimatedFrf = level.measured(band).ok()?;
-    let opts = super::nominal_analysis(n, band, budget);
-    let a = analyze_estimate(&level.rec, est, &opts).ok()?;
+    let a = identified_on_top(data, n, band, budget, |_| {})?;
     let b = a.ground_damper.as_ref()?.damping.b_nms_per_rad;
     Some(LinExt {
         motor_b: b,
         ..LinExt::nominal(a.fit?.chain)
     })
+}
+
+/// The identification of the nominal `n`-body chain ([`super::nominal_analysis`]) on the
+/// highest level's measurement in `band`, after `change` (what a start takes out of it).
+pub(crate) fn identified_on_top(
+    data: &Data,
+    n: usize,
+    band: Option<[f64; 2]>,
+    budget: &crate::identify::fit::FitBudget,
+    change: impl FnOnce(&mut EstimatedFrf),
+) -> Option<Analysis> {
+    let level = &data.levels[super::top_level(data)];
+    let mut est: EstimatedFrf = level.measured(band).ok()?;
+    change(&mut est);
+    let opts = super::nominal_analysis(n, band, budget);
+    analyze_estimate(&level.rec, est, &opts).ok()
 }
 
 #[cfg(test)]

@@ -12,7 +12,6 @@
 use super::lti::{LinExt, Loop};
 use super::torque_path::Shape;
 use super::Data;
-use crate::analysis::analyze_estimate;
 use num_complex::Complex64;
 
 /// The continuous response of `lp` at `f_hz`: `1/(1 + s/wc)` or
@@ -43,16 +42,13 @@ pub fn start(
         .filter(|tp| tp.shape == Shape::Loop)?
         .with_loop
         .lp?;
-    let top = super::top_level(data);
-    let level = &data.levels[top];
-    let mut est = level.measured(band).ok()?;
-    for k in 0..est.frf.freq_hz.len() {
-        let g = response(&lp, est.frf.freq_hz[k]);
-        est.frf.h[k] /= g;
-        est.frf.var[k] /= g.norm_sqr();
-    }
-    let opts = super::nominal_analysis(n, band, budget);
-    let a = analyze_estimate(&level.rec, est, &opts).ok()?;
+    let a = super::damper_free::identified_on_top(data, n, band, budget, |est| {
+        for k in 0..est.frf.freq_hz.len() {
+            let g = response(&lp, est.frf.freq_hz[k]);
+            est.frf.h[k] /= g;
+            est.frf.var[k] /= g.norm_sqr();
+        }
+    })?;
     let b = a
         .ground_damper
         .as_ref()

@@ -58,25 +58,36 @@ struct Prop {
 /// Most column pairs of a fixed-size step (8 states).
 const MAX_PAIRS: usize = 4;
 
-/// `p[0] + p[1] + ...` added pairwise, level by level (an odd last term carried up): the
-/// order of every row of [`Prop`]'s step.
+/// `t[0] + t[1] + ...` added pairwise, level by level (an odd last term carried up): the
+/// order of every row of [`Prop`]'s step. Streamed as a binary counter (a partial sum per
+/// level, merged when two of a level meet, the rest folded from the right at the end),
+/// which adds in that order (`the_tree_sum_adds_pairs_level_by_level`) with no buffer: a
+/// sub-step allocates nothing for any number of states.
 #[inline(always)]
-fn tree_sum(p: &mut [f64]) -> f64 {
-    let mut m = p.len();
-    if m == 0 {
+fn tree_sum(terms: impl Iterator<Item = f64>) -> f64 {
+    // partial sums and their levels; 64 levels hold 2^64 terms
+    let mut sum = [0.0f64; 64];
+    let mut level = [0u32; 64];
+    let mut top = 0;
+    for t in terms {
+        let (mut v, mut l) = (t, 0);
+        while top > 0 && level[top - 1] == l {
+            v = sum[top - 1] + v;
+            top -= 1;
+            l += 1;
+        }
+        sum[top] = v;
+        level[top] = l;
+        top += 1;
+    }
+    if top == 0 {
         return 0.0;
     }
-    while m > 1 {
-        let half = m / 2;
-        for j in 0..half {
-            p[j] = p[2 * j] + p[2 * j + 1];
-        }
-        if m % 2 == 1 {
-            p[half] = p[m - 1];
-        }
-        m = half + m % 2;
+    let mut s = sum[top - 1];
+    for i in (0..top - 1).rev() {
+        s = sum[i] + s;
     }
-    p[0]
+    s
 }
 
 impl Prop {
@@ -135,26 +146,15 @@ impl Prop {
     /// plus the inputs.
     fn apply_rows(&self, x: &[f64], xn: &mut [f64], u: f64, fc: f64) {
         let ns = x.len();
-        // the pairs' products on the stack up to 32 states (16 bodies), else on the heap
-        let mut stack = [0.0; 16];
-        let mut heap = Vec::new();
-        let pairs = ns.div_ceil(2);
-        let p: &mut [f64] = if pairs <= stack.len() {
-            &mut stack[..pairs]
-        } else {
-            heap.resize(pairs, 0.0);
-            &mut heap
-        };
         for (r, out) in xn.iter_mut().enumerate() {
-            for (j, pj) in p.iter_mut().enumerate() {
-                let c = 2 * j;
-                *pj = if c + 1 < ns {
+            let pairs = (0..ns).step_by(2).map(|c| {
+                if c + 1 < ns {
                     self.a[c * ns + r] * x[c] + self.a[(c + 1) * ns + r] * x[c + 1]
                 } else {
                     self.a[c * ns + r] * x[c]
-                };
-            }
-            *out = tree_sum(p) + (self.bu[r] * u + self.bc[r] * fc);
+                }
+            });
+            *out = tree_sum(pairs) + (self.bu[r] * u + self.bc[r] * fc);
         }
     }
 }
@@ -857,7 +857,7 @@ mod tests {
     /// pairs (against the order written out by hand, and the plain sum to rounding).
     #[test]
     fn the_tree_sum_adds_pairs_level_by_level() {
-        let t: Vec<f64> = (0..9)
+        let t: Vec<f64> = (0..40)
             .map(|i| 1.0 / (1.0 + i as f64).powi(3) + 1e-17 * i as f64)
             .collect();
         let by_hand = [
@@ -868,21 +868,28 @@ mod tests {
             ((t[0] + t[1]) + (t[2] + t[3])) + t[4],
         ];
         for (m, want) in by_hand.iter().enumerate() {
-            let mut p = t[..m + 1].to_vec();
-            assert_eq!(
-                tree_sum(&mut p).to_bits(),
-                want.to_bits(),
-                "{} terms",
-                m + 1
-            );
+            let got = tree_sum(t[..m + 1].iter().copied());
+            assert_eq!(got.to_bits(), want.to_bits(), "{} terms", m + 1);
         }
+        // the level-by-level reduction written out, for every count up to 40
+        let levels = |p: &[f64]| -> f64 {
+            let mut p = p.to_vec();
+            if p.is_empty() {
+                return 0.0;
+            }
+            while p.len() > 1 {
+                p = p
+                    .chunks(2)
+                    .map(|c| c.iter().copied().reduce(|a, b| a + b).unwrap())
+                    .collect();
+            }
+            p[0]
+        };
         for m in 0..=t.len() {
+            let got = tree_sum(t[..m].iter().copied());
+            assert_eq!(got.to_bits(), levels(&t[..m]).to_bits(), "{m} terms");
             let plain: f64 = t[..m].iter().sum();
-            let mut p = t[..m].to_vec();
-            assert!(
-                (tree_sum(&mut p) - plain).abs() <= 1e-15 * plain.abs(),
-                "{m} terms"
-            );
+            assert!((got - plain).abs() <= 1e-15 * plain.abs(), "{m} terms");
         }
     }
 

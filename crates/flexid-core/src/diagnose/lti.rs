@@ -31,6 +31,10 @@ pub struct LinExt {
     pub ground_k: f64,
     /// Viscous damping from the motor to the ground [N m s/rad].
     pub motor_b: f64,
+    /// Viscous damping from the last body to the ground [N m s/rad]: the bearing of a load
+    /// that swings under `ground_k` (gravity's own damper: a pendulum is damped at its
+    /// pivot, on the load side of the gear, not at the motor).
+    pub ground_b: f64,
     pub current_loop: Option<Loop>,
     /// Delay [s] beyond the recording's whole-sample `io_delay`.
     pub delay_s: f64,
@@ -48,6 +52,7 @@ impl LinExt {
             chain,
             ground_k: 0.0,
             motor_b: 0.0,
+            ground_b: 0.0,
             current_loop: None,
             delay_s: 0.0,
             ground_spring: false,
@@ -82,6 +87,7 @@ impl LinExt {
             }
         }
         a[(2 * n - 1, n - 1)] -= self.ground_k / j[n - 1];
+        a[(2 * n - 1, 2 * n - 1)] -= self.ground_b / j[n - 1];
         a[(n, n)] -= self.motor_b / j[0];
         match self.current_loop {
             None => b[(n, 0)] = 1.0 / j[0],

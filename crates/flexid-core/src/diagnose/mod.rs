@@ -889,7 +889,7 @@ fn diagnose_from(
     stage.lap("residual");
 
     let mut candidates = Candidates::new(stage, steps);
-    fit_linear_candidates(data, &nom_lin, idents, &mut candidates);
+    fit_linear_candidates(data, &nominal, idents, &mut candidates);
     if let (false, Some((with, _))) = (viscous.significant, &viscous.with_viscous) {
         // viscous friction not significant on the nominal chain alone (a large gap
         // elsewhere can hide it): each linear effect is also tried on top of it, the
@@ -1168,7 +1168,7 @@ impl Next<'_> {
             fits.extend(effects::current_loop::fit(data, base));
         }
         if wanted(Effect::Gravity) && !base.ground_spring {
-            fits.extend(effects::gravity::fit(data, base, &[]));
+            fits.extend(effects::gravity::fit(data, base, &[], &[]));
         }
         if wanted(Effect::UnmodelledMode) {
             let here = effects::finish_linear(data, Effect::None, base.clone(), vec![], 0);
@@ -1450,10 +1450,11 @@ impl<'a> Candidates<'a> {
 /// current loop, gravity.
 fn fit_linear_candidates(
     data: &Data,
-    nom_lin: &LinExt,
+    nominal: &EffectFit,
     idents: &[crate::model::Chain],
     c: &mut Candidates,
 ) {
+    let nom_lin = &nominal.lin;
     let budget = c.steps.budget.clone();
     c.fit(Effect::TimeDelay, || {
         let more = effects::delay::reidentified(data, nom_lin, &budget);
@@ -1469,7 +1470,7 @@ fn fit_linear_candidates(
         return;
     }
     c.fit(Effect::Gravity, || {
-        effects::gravity::fit(data, nom_lin, idents)
+        effects::gravity::fit(data, nom_lin, idents, &mode_start_freqs(data, nominal))
     });
 }
 

@@ -244,7 +244,9 @@ pub fn simulate_lanes_into(
     let starts: Vec<Vec<f64>> = us
         .iter()
         .map(|u| match nl {
-            Nl::GroundCubic { .. } if lin.motor_b == 0.0 && lin.ground_k == 0.0 => {
+            Nl::GroundCubic { .. }
+                if lin.motor_b == 0.0 && lin.ground_b == 0.0 && lin.ground_k == 0.0 =>
+            {
                 centred_start(&lin.chain, u, fs)
             }
             _ => vec![0.0; s.bm.len()],

@@ -57,7 +57,7 @@ pub fn deflections_per_nm(lin: &LinExt, f_hz: f64) -> Vec<Complex64> {
         })
         .collect();
     diag[0] += jw * lin.motor_b;
-    diag[n - 1] += lin.ground_k;
+    diag[n - 1] += lin.ground_k + jw * lin.ground_b;
     let mut rhs = vec![Complex64::from(0.0); n];
     rhs[0] = 1.0.into();
     // forward elimination: row i+1 -= (off / diag_i) row i, off = -spring(i)

@@ -22,8 +22,8 @@ use crate::model::Chain;
 /// the grid's starts begin next to the nominal model's chi², these far from it, and they
 /// end far below it): where the nominal chain took the ground as its last body, the bodies
 /// before it given their missing body back at the frequencies `gap_hz` where the nominal
-/// model's gap is largest or at a resonance the detection saw ([`body_split_off`]); and the grounded chain read off the
-/// measured spectra ([`grounded_from_spectra`]).
+/// model's gap is largest or at a resonance the detection saw ([`body_split_off`]); and
+/// the grounded chain read off the measured spectra ([`Detected::grounded`]).
 pub fn fit(data: &Data, nominal: &LinExt, idents: &[Chain], gap_hz: &[f64]) -> Option<EffectFit> {
     let w0 = 2.0 * std::f64::consts::PI * data.f_min();
     // a chain whose last body is the ground (far heavier than the rest: the nominal fit
@@ -60,22 +60,15 @@ pub fn fit(data: &Data, nominal: &LinExt, idents: &[Chain], gap_hz: &[f64]) -> O
     if ends_in_ground(&nominal.chain) {
         starts.extend(held_like_the_ground(nominal));
     }
+    let seen = Detected::of(data);
     let split = if ends_in_ground(&nominal.chain) {
         let mut at_hz = gap_hz.to_vec();
-        at_hz.extend(detected_resonances_hz(data));
+        at_hz.extend(seen.iter().flat_map(Detected::resonances_hz));
         body_split_off(nominal, &at_hz)
     } else {
         Vec::new()
     };
-    let read: Vec<LinExt> = grounded_from_spectra(data, nominal.chain.masses())
-        .map(|g| LinExt {
-            chain: g.chain,
-            ground_k: g.ground_k,
-            ground_b: g.ground_b,
-            ..nominal.clone()
-        })
-        .into_iter()
-        .collect();
+    let read: Vec<LinExt> = seen.and_then(|d| d.grounded(nominal)).into_iter().collect();
     let (m, r) = [
         fit_best_start(data, Lin::Gravity, &starts, 80, 3),
         fit_best_start(data, Lin::Gravity, &split, 80, 1),
@@ -91,9 +84,10 @@ pub fn fit(data: &Data, nominal: &LinExt, idents: &[Chain], gap_hz: &[f64]) -> O
 /// fit has one real body too few (the ground took its place, two bodies merged), so one of
 /// the bodies before the ground is split in two (a fifth, a half, four fifths of it on the
 /// motor side) joined by the coupling whose two-body resonance is at a frequency of
-/// `at_hz` (where the nominal model's gap is, and the resonances the detection saw); the ground's spring becomes the restoring stiffness with a tenth of critical
-/// damping, the new coupling 3 % of its critical damping. Empty when the chain does not end
-/// in the ground.
+/// `at_hz` (where the nominal model's gap is, and the resonances the detection saw); the
+/// ground's spring becomes the restoring stiffness with a tenth of critical damping, the
+/// new coupling 3 % of its critical damping. Empty when the chain does not end in the
+/// ground.
 fn body_split_off(nominal: &LinExt, at_hz: &[f64]) -> Vec<LinExt> {
     let Some((bodies, k)) = without_ground_body(&nominal.chain) else {
         return Vec::new();
@@ -139,109 +133,127 @@ fn body_split_off(nominal: &LinExt, at_hz: &[f64]) -> Vec<LinExt> {
 }
 
 /// The measured response of the level with the highest torque, its whole samples of
-/// delay, and its anti-resonance/resonance detection.
-fn detected(data: &Data) -> Option<(Frf, u32, Detection)> {
-    let l = &data.levels[crate::diagnose::top_level(data)];
-    let frf = Frf {
-        freq_hz: l.f.clone(),
-        h: l.h.clone(),
-        var: l.var.clone(),
-        coherence: None,
-        kind: data.kind,
-        sample_rate_hz: data.fs,
-    };
-    let det = detect_pairs(
-        &frf,
-        &DetectOptions {
-            delay_samples: l.io_delay,
-            ..DetectOptions::default()
-        },
-    )
-    .ok()?;
-    Some((frf, l.io_delay, det))
+/// delay, and its anti-resonance/resonance detection: what the gravity starts read off
+/// the spectra.
+pub struct Detected {
+    frf: Frf,
+    io_delay: u32,
+    det: Detection,
 }
 
-/// The resonances [Hz] the detection saw in the measured response: its peaks and the
-/// resonances of its pairs, confirmed or not.
-fn detected_resonances_hz(data: &Data) -> Vec<f64> {
-    let Some((_, _, det)) = detected(data) else {
-        return Vec::new();
-    };
-    det.peaks
-        .iter()
-        .map(|p| p.freq_hz)
-        .chain(det.pairs.iter().chain(&det.unconfirmed).map(|p| p.r_hz))
-        .collect()
-}
-
-/// The grounded chain read off the measured response of the level with the highest
-/// torque: the paper's identification from the spectra ([`chain_from_spectra`]) for a
-/// chain held to the ground at its load. A restoring stiffness `k_g` on the last body makes
-/// the motor's response one resonance richer than its anti-resonances,
-///
-/// ```text
-/// X(s) = (1/k_g) prod_(i<n) (1 + s²/w_AR,i²) / prod_(i<=n) (1 + s²/w_R,i²)
-/// ```
-///
-/// (the lowest resonance, the load swinging on `k_g`, has no anti-resonance below it: the
-/// detection reports it `ar_below_band`). That is a free chain of `n + 1` bodies whose last
-/// body is the ground: its lowest anti-resonance `w_AR,0 = sqrt(k_g / J_t)` goes to zero as
-/// the ground's inertia grows. So the chain comes from the free chain's inverse with a
-/// ground body of `10^4` times the rest (`w_AR,0 = w_R,1 / 100`), the ground split off
-/// ([`without_ground_body`]); `k_g` from the median over the lines of
-/// `w² |X_shape(w)| / |R(w)|` (`R = -w² X`, the normalised response), and 3 % of critical
-/// damping per coupling and a tenth of critical to the ground. `None` unless exactly `n`
-/// pairs are detected (the unconfirmed ones counted where the confirmed are too few), the
-/// lowest one with its anti-resonance below the band, and the spectra interlace.
-pub fn grounded_from_spectra(data: &Data, n: usize) -> Option<LinExt> {
-    let (frf, io_delay, det) = detected(data)?;
-    // the confirmed pairs, or with the unconfirmed ones (below the detection's thresholds,
-    // offered to the order selection) where that makes the `n` a chain of `n` bodies has
-    let mut pairs = det.pairs.clone();
-    if pairs.len() < n {
-        pairs.extend(det.unconfirmed.iter().cloned());
-        pairs.sort_by(|a, b| a.r_hz.total_cmp(&b.r_hz));
-    }
-    if pairs.len() != n || !pairs[0].ar_below_band {
-        return None;
-    }
-    let r: Vec<f64> = pairs.iter().map(|p| p.r_hz).collect();
-    let ar: Vec<f64> = pairs[1..].iter().map(|p| p.ar_hz).collect();
-    // k_g: the undamped shape against the measured inverse effective inertia
-    let nr = normalized_response(&frf, None, io_delay).ok()?;
-    let mut kg: Vec<f64> = nr
-        .freq_hz
-        .iter()
-        .zip(&nr.r)
-        .filter_map(|(&f, rr)| {
-            let shape = ar
-                .iter()
-                .map(|a| (1.0 - (f / a).powi(2)).abs())
-                .product::<f64>()
-                / r.iter()
-                    .map(|q| (1.0 - (f / q).powi(2)).abs())
-                    .product::<f64>();
-            let w = 2.0 * std::f64::consts::PI * f;
-            let k = w * w * shape / rr.norm();
-            (k.is_finite() && k > 0.0).then_some(k)
+impl Detected {
+    /// The detection on the level with the highest torque; `None` where it fails (too few
+    /// lines).
+    pub fn of(data: &Data) -> Option<Self> {
+        let l = &data.levels[crate::diagnose::top_level(data)];
+        let frf = Frf {
+            freq_hz: l.f.clone(),
+            h: l.h.clone(),
+            var: l.var.clone(),
+            coherence: None,
+            kind: data.kind,
+            sample_rate_hz: data.fs,
+        };
+        let det = detect_pairs(
+            &frf,
+            &DetectOptions {
+                delay_samples: l.io_delay,
+                ..DetectOptions::default()
+            },
+        )
+        .ok()?;
+        Some(Detected {
+            frf,
+            io_delay: l.io_delay,
+            det,
         })
-        .collect();
-    if kg.is_empty() {
-        return None;
     }
-    kg.sort_by(f64::total_cmp);
-    let kg = kg[kg.len() / 2];
-    let w1 = 2.0 * std::f64::consts::PI * r[0];
-    let j_ground = 1e4 * kg / (w1 * w1);
-    let ar0: Vec<f64> = std::iter::once(r[0] / 100.0).chain(ar).collect();
-    let free = chain_from_spectra(j_ground, &ar0, &r).ok()?;
-    let (bodies, k) = without_ground_body(&with_coupling_damping(free, 0.03))?;
-    let jt = bodies.total_inertia();
-    Some(LinExt {
-        ground_k: k,
-        ground_b: 0.2 * (k * jt).sqrt(),
-        ..LinExt::nominal(bodies)
-    })
+
+    /// The resonances [Hz] the detection saw: its peaks and the resonances of its pairs,
+    /// confirmed or not.
+    pub fn resonances_hz(&self) -> Vec<f64> {
+        let det = &self.det;
+        det.peaks
+            .iter()
+            .map(|p| p.freq_hz)
+            .chain(det.pairs.iter().chain(&det.unconfirmed).map(|p| p.r_hz))
+            .collect()
+    }
+
+    /// The grounded chain read off the measured spectra, with `base`'s other extensions and
+    /// as many bodies as its chain: the paper's identification from the spectra
+    /// ([`chain_from_spectra`]) for a chain held to the ground at its load. A restoring
+    /// stiffness `k_g` on the last body makes the motor's response one resonance richer
+    /// than its anti-resonances,
+    ///
+    /// ```text
+    /// X(s) = (1/k_g) prod_(i<n) (1 + s²/w_AR,i²) / prod_(i<=n) (1 + s²/w_R,i²)
+    /// ```
+    ///
+    /// (the lowest resonance, the load swinging on `k_g`, has no anti-resonance below it:
+    /// the detection reports it `ar_below_band`). That is a free chain of `n + 1` bodies
+    /// whose last body is the ground: its lowest anti-resonance `w_AR,0 = sqrt(k_g / J_t)`
+    /// goes to zero as the ground's inertia grows. So the chain comes from the free chain's
+    /// inverse with a ground body of `10^4` times the rest (`w_AR,0 = w_R,1 / 100`), the
+    /// ground split off ([`without_ground_body`]); `k_g` from the median over the lines of
+    /// `w² |X_shape(w)| / |R(w)|` (`R = -w² X`, the normalised response), and 3 % of
+    /// critical damping per coupling and a tenth of critical to the ground. `None` unless
+    /// exactly `n` pairs are detected (the unconfirmed ones counted where the confirmed are
+    /// too few), the lowest one with its anti-resonance below the band, and the spectra
+    /// interlace.
+    pub fn grounded(&self, base: &LinExt) -> Option<LinExt> {
+        let (frf, io_delay, det) = (&self.frf, self.io_delay, &self.det);
+        let n = base.chain.masses();
+        // the confirmed pairs, or with the unconfirmed ones (below the detection's
+        // thresholds, offered to the order selection) where that makes the `n` a chain of
+        // `n` bodies has
+        let mut pairs = det.pairs.clone();
+        if pairs.len() < n {
+            pairs.extend(det.unconfirmed.iter().cloned());
+            pairs.sort_by(|a, b| a.r_hz.total_cmp(&b.r_hz));
+        }
+        if pairs.len() != n || !pairs[0].ar_below_band {
+            return None;
+        }
+        let r: Vec<f64> = pairs.iter().map(|p| p.r_hz).collect();
+        let ar: Vec<f64> = pairs[1..].iter().map(|p| p.ar_hz).collect();
+        // k_g: the undamped shape against the measured inverse effective inertia
+        let nr = normalized_response(frf, None, io_delay).ok()?;
+        let mut kg: Vec<f64> = nr
+            .freq_hz
+            .iter()
+            .zip(&nr.r)
+            .filter_map(|(&f, rr)| {
+                let shape = ar
+                    .iter()
+                    .map(|a| (1.0 - (f / a).powi(2)).abs())
+                    .product::<f64>()
+                    / r.iter()
+                        .map(|q| (1.0 - (f / q).powi(2)).abs())
+                        .product::<f64>();
+                let w = 2.0 * std::f64::consts::PI * f;
+                let k = w * w * shape / rr.norm();
+                (k.is_finite() && k > 0.0).then_some(k)
+            })
+            .collect();
+        if kg.is_empty() {
+            return None;
+        }
+        kg.sort_by(f64::total_cmp);
+        let kg = kg[kg.len() / 2];
+        let w1 = 2.0 * std::f64::consts::PI * r[0];
+        let j_ground = 1e4 * kg / (w1 * w1);
+        let ar0: Vec<f64> = std::iter::once(r[0] / 100.0).chain(ar).collect();
+        let free = chain_from_spectra(j_ground, &ar0, &r).ok()?;
+        let (bodies, k) = without_ground_body(&with_coupling_damping(free, 0.03))?;
+        let jt = bodies.total_inertia();
+        Some(LinExt {
+            chain: bodies,
+            ground_k: k,
+            ground_b: 0.2 * (k * jt).sqrt(),
+            ..base.clone()
+        })
+    }
 }
 
 /// `base` whose last body (the ground, [`ends_in_ground`]) is made an ordinary body: the
@@ -463,7 +475,10 @@ mod tests {
             )
         };
         let (data, _) = exact_data(&truth, 2000.0, &[1.0, 400.0], 400);
-        let got = grounded_from_spectra(&data, 3).expect("a grounded chain");
+        let base = LinExt::nominal(truth.chain.clone());
+        let got = Detected::of(&data)
+            .and_then(|d| d.grounded(&base))
+            .expect("a grounded chain");
         let rel = |a: f64, b: f64| (a / b - 1.0).abs();
         assert!(rel(got.ground_k, 3.0) < 0.05, "k_g {}", got.ground_k);
         for i in 0..3 {
@@ -480,7 +495,9 @@ mod tests {
         // a free chain has no such reading: its lowest pair has its anti-resonance in the band
         let free = LinExt::nominal(truth.chain.clone());
         let (data, _) = exact_data(&free, 2000.0, &[1.0, 400.0], 400);
-        assert!(grounded_from_spectra(&data, 3).is_none());
+        assert!(Detected::of(&data)
+            .and_then(|d| d.grounded(&base))
+            .is_none());
     }
 
     /// A nominal chain that took the ground as its last body and merged two real bodies

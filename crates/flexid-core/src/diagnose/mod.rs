@@ -1623,7 +1623,9 @@ fn fit_amplitude_candidates(
     restoring: Option<&EffectFit>,
     c: &mut Candidates,
 ) {
-    if c.explained(data) && !force {
+    // a linear candidate within the noise over all lines does not explain an FRF that
+    // changes significantly between levels (no linear model does)
+    if c.explained(data) && !force && !residual.nonlinear {
         c.notes.push(
             "amplitude-dependent candidates not simulated: a linear candidate leaves only noise"
                 .into(),
@@ -1663,6 +1665,7 @@ fn fit_amplitude_candidates(
     let fits = [
         effects::hardening::fit(data, &low_lin),
         restoring.and_then(|g| effects::hardening::fit_ground_from_restoring(data, g)),
+        effects::hardening::fit_ground_from_spectra(data, nom_lin),
     ];
     c.push(
         fits.into_iter()

@@ -97,7 +97,7 @@ fn body_split_off(nominal: &LinExt, at_hz: &[f64]) -> Vec<LinExt> {
         if f > 0.0
             && !freqs
                 .iter()
-                .any(|&g| (f / g).ln().abs() < super::mode::START_FREQ_RATIO.ln())
+                .any(|&g| (f / g).ln().abs() < super::START_FREQ_RATIO.ln())
         {
             freqs.push(f);
         }

@@ -23,6 +23,12 @@ use crate::model::Chain;
 use num_complex::Complex64;
 use serde::Serialize;
 
+/// Start frequencies closer than this ratio to an earlier one give no starts of their own
+/// (the extra mode's and gravity's: the bands of the levels overlap; each start costs a
+/// fit). Here, not in `mode`, so that `gravity` and `mode` use it without importing
+/// each other.
+pub const START_FREQ_RATIO: f64 = 1.2;
+
 /// One identified parameter of an effect.
 #[derive(Debug, Clone, Serialize)]
 pub struct Param {

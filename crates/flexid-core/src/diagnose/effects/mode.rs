@@ -25,9 +25,7 @@ pub const JOINT_STARTS: usize = 2;
 /// LM iterations of the joint refinement.
 pub const JOINT_ITERS: usize = 60;
 
-/// Frequencies closer than this ratio to an earlier one give no starts of their own (the
-/// bands of the levels overlap; each start costs a prefit).
-pub const START_FREQ_RATIO: f64 = 1.2;
+pub use super::START_FREQ_RATIO;
 
 /// Starts: the nominal chain with a body of `r` times the last inertia appended, tuned to
 /// each frequency in `freqs_hz` (those within [`START_FREQ_RATIO`] of an earlier one

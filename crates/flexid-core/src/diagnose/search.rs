@@ -640,10 +640,9 @@ pub fn fit_spring(
     // the starts of the levels' own fits (the describing function's solution, or a grid
     // over the spring's range) and of the small-signal chain are two families: the best
     // of each is refined and polished, the better result kept. The cost of an unrefined
-    // start says little about its basin: dev A 50303 (a hardening spring under a sweep)
-    // found x_ref 8.2e-3 (truth 8.8e-3) from the level starts while the small-signal ones
-    // were cheaper as given, and lost it when the lowest line of the sweep was dropped
-    // (the refined small-signal start then ended above the nominal model)
+    // start says little about its basin: with only the cheapest start of both refined,
+    // exploration A 900301 (a hardening coupling, 2 kHz odd random-phase multisine) was
+    // named `backlash`; refined per family, `hardening_stiffness`
     let mut level_best: Option<(f64, usize, LinExt, f64)> = None;
     for (s_lo, s_hi) in m_lo.iter().zip(&m_hi) {
         let (base, s_ref) = if spring.high_level_chain {
@@ -723,8 +722,9 @@ const INACTIVE: f64 = 1e-6;
 /// descends on the log residuals, not on the chi² the diagnosis judges by: where the
 /// model is far from the data the two part, so the refined start is kept where the
 /// polished one has the larger chi² (dev A 50303, a hardening spring under a sweep with a
-/// reduced chi² of 8000 before: refined 7.5e6 at x_ref 0.043 rad, polished 1.33e7 at
-/// 0.026 rad, above the nominal model's 1.2e7).
+/// reduced chi² of 8000 before, measured with the sweep's lowest LPM window dropped, a
+/// variant not kept: refined 7.5e6 at x_ref 0.043 rad, polished 1.33e7 at 0.026 rad,
+/// above the nominal model's 1.2e7).
 fn refined_and_polished(
     data: &Data,
     start: &LinExt,

@@ -20,6 +20,8 @@
 //! * [`diagnose`]: the sim-to-real gap: where model and measurement part and which
 //!   unmodelled effect explains it.
 //! * [`sim`]: simulated recordings of chains (exact ZOH sampling, noise, quantisation).
+//! * [`manipulator`]: the flexible manipulator of the multi-axis identification (gear and
+//!   bearing spring-dampers on rigid links), linearised at a pose, and its FRF matrix.
 //! * [`plant`]: the physics plant of the simulated drive: the chain with unmodelled
 //!   effects (friction, backlash, delay, current loop, ...), a fine-step simulator, and
 //!   the plant file's types and parser.
@@ -33,6 +35,7 @@ pub mod excitation;
 pub mod frf;
 pub mod identify;
 pub mod lsq;
+pub mod manipulator;
 pub mod model;
 pub mod plant;
 pub mod recording;

@@ -1,0 +1,170 @@
+use super::*;
+use crate::manipulator::pose::Motor;
+use crate::manipulator::springs::{Spring, SpringKind};
+use crate::manipulator::tests_support::two_axis_pose;
+
+/// The same model as a first-order state space `x' = A x + B u`, `v = C x` built with
+/// nalgebra (the coordinates' matrices assembled entry by entry, not by the plan), its FRF
+/// `C (sI - A)^-1 B` by nalgebra's LU: the independent reference.
+fn state_space_frf(pose: &RigidPose, theta: &Flexibilities, f_hz: f64) -> DMatrix<Complex64> {
+    let na = pose.arm_coords();
+    let ax = pose.axes();
+    let n = na + ax;
+    let mut m = DMatrix::<f64>::zeros(n, n);
+    let mut k = DMatrix::<f64>::zeros(n, n);
+    let mut c = DMatrix::<f64>::zeros(n, n);
+    m.view_mut((0, 0), (na, na)).copy_from(&pose.arm_mass);
+    k.view_mut((0, 0), (na, na))
+        .copy_from(&pose.gravity_stiffness);
+    for (i, mo) in pose.motors.iter().enumerate() {
+        m[(na + i, na + i)] = mo.rotor_inertia_kgm2 * mo.gear_ratio.powi(2);
+    }
+    for (p, s) in pose.springs.iter().enumerate() {
+        let mut e = nalgebra::DVector::<f64>::zeros(n);
+        e[s.arm_coord] = 1.0;
+        if let SpringKind::Gear { joint } = s.kind {
+            e[na + joint] = -1.0;
+        }
+        k += &e * e.transpose() * theta.stiffness_nm_per_rad[p];
+        c += &e * e.transpose() * theta.damping_nms_per_rad[p];
+    }
+    let minv = m.clone().try_inverse().unwrap();
+    let mut a = DMatrix::<f64>::zeros(2 * n, 2 * n);
+    a.view_mut((0, n), (n, n))
+        .copy_from(&DMatrix::identity(n, n));
+    a.view_mut((n, 0), (n, n)).copy_from(&(-&minv * &k));
+    a.view_mut((n, n), (n, n)).copy_from(&(-&minv * &c));
+    let mut bu = DMatrix::<f64>::zeros(n, ax);
+    for (i, mo) in pose.motors.iter().enumerate() {
+        bu[(na + i, i)] = mo.gear_ratio;
+    }
+    let mut b = DMatrix::<f64>::zeros(2 * n, ax);
+    b.view_mut((n, 0), (n, ax)).copy_from(&(&minv * &bu));
+    let mut cy = DMatrix::<f64>::zeros(ax, 2 * n);
+    for (i, mo) in pose.motors.iter().enumerate() {
+        cy[(i, n + na + i)] = mo.gear_ratio;
+    }
+    let s = Complex64::new(0.0, 2.0 * std::f64::consts::PI * f_hz);
+    let sia = DMatrix::<Complex64>::identity(2 * n, 2 * n) * s - a.map(|x| Complex64::new(x, 0.0));
+    let x = sia.lu().solve(&b.map(|x| Complex64::new(x, 0.0))).unwrap();
+    cy.map(|x| Complex64::new(x, 0.0)) * x
+}
+
+fn max_rel(a: &DMatrix<Complex64>, b: &DMatrix<Complex64>) -> f64 {
+    let scale = b.iter().map(|x| x.norm()).fold(0.0, f64::max);
+    a.iter()
+        .zip(b.iter())
+        .map(|(x, y)| (x - y).norm() / scale)
+        .fold(0.0, f64::max)
+}
+
+#[test]
+fn the_frf_equals_the_state_space_one() {
+    for seed in 0..5 {
+        let (pose, theta) = two_axis_pose(seed);
+        let mut plan = FrfPlan::new(&pose);
+        let freqs: Vec<f64> = (0..60).map(|i| 0.5 * 1.1f64.powi(i)).collect();
+        let model = plan.frf(&freqs, &theta).unwrap();
+        for (f, g) in freqs.iter().zip(&model.g) {
+            let reference = state_space_frf(&pose, &theta, *f);
+            let e = max_rel(g, &reference);
+            assert!(e < 1e-9, "seed {seed}, {f} Hz: {e:e}");
+            // reciprocity: the paper's eq. (13)
+            assert!(max_rel(&g.transpose(), g) < 1e-9, "seed {seed}, {f} Hz");
+        }
+    }
+}
+
+/// One axis with no bearing pair is the project's two-mass chain (motor `J_m r^2`, arm
+/// `J_a`, the gear between them): its motor mobility times `r^2` on the motor side.
+#[test]
+fn one_axis_is_the_two_mass_chain() {
+    let (jm, r, ja, k, c) = (3e-4, 100.0, 12.0, 4e5, 60.0);
+    let pose = RigidPose::new(
+        DMatrix::from_element(1, 1, ja),
+        DMatrix::zeros(1, 1),
+        vec![Motor {
+            rotor_inertia_kgm2: jm,
+            gear_ratio: r,
+        }],
+        vec![Spring {
+            kind: SpringKind::Gear { joint: 0 },
+            arm_coord: 0,
+        }],
+    )
+    .unwrap();
+    let theta = Flexibilities::new(vec![k], vec![c]).unwrap();
+    let chain = crate::model::Chain::new(vec![jm * r * r, ja], vec![k], vec![c]).unwrap();
+    let mut plan = FrfPlan::new(&pose);
+    let mut g = [Complex64::new(0.0, 0.0)];
+    for f in [0.3, 3.0, 17.0, 30.0, 31.5, 90.0, 400.0] {
+        plan.frf_into(f, &theta, &mut g).unwrap();
+        let reference = chain.mobility(f) * r * r;
+        assert!(
+            (g[0] - reference).norm() < 1e-10 * reference.norm(),
+            "{f} Hz: {} vs {reference}",
+            g[0]
+        );
+    }
+}
+
+/// The analytic derivatives equal central differences in the logarithms.
+#[test]
+fn derivatives_equal_central_differences() {
+    let (pose, theta) = two_axis_pose(3);
+    let mut plan = FrfPlan::new(&pose);
+    let ax = plan.axes();
+    let nn = ax * ax;
+    let np = 2 * plan.pairs();
+    let mut g = vec![Complex64::new(0.0, 0.0); nn];
+    let mut dg = vec![Complex64::new(0.0, 0.0); np * nn];
+    let (mut gp, mut gm) = (g.clone(), g.clone());
+    let log = theta.to_log();
+    for f in [2.0, 25.0, 60.0, 140.0] {
+        plan.frf_and_derivatives_into(f, &theta, &mut g, &mut dg)
+            .unwrap();
+        for p in 0..np {
+            let h = 1e-6;
+            let mut t = log.clone();
+            t[p] += h;
+            plan.frf_into(f, &Flexibilities::from_log(&t), &mut gp)
+                .unwrap();
+            t[p] -= 2.0 * h;
+            plan.frf_into(f, &Flexibilities::from_log(&t), &mut gm)
+                .unwrap();
+            let scale = g.iter().map(|x| x.norm()).fold(0.0, f64::max);
+            for e in 0..nn {
+                let fd = (gp[e] - gm[e]) / (2.0 * h);
+                let d = (fd - dg[p * nn + e]).norm();
+                assert!(
+                    d < 1e-6 * scale,
+                    "{f} Hz, parameter {p}, element {e}: {d:e}"
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn a_pose_with_a_coordinate_held_twice_is_refused() {
+    let (pose, _) = two_axis_pose(1);
+    let mut springs = pose.springs.clone();
+    springs[1].arm_coord = 1;
+    let e = RigidPose::new(
+        pose.arm_mass.clone(),
+        pose.gravity_stiffness.clone(),
+        pose.motors.clone(),
+        springs,
+    );
+    assert!(
+        matches!(e, Err(ManipulatorError::Coordinate { .. })),
+        "{e:?}"
+    );
+    let e = RigidPose::new(
+        pose.arm_mass.clone(),
+        DMatrix::zeros(3, 3),
+        pose.motors.clone(),
+        pose.springs.clone(),
+    );
+    assert!(matches!(e, Err(ManipulatorError::Shape { .. })), "{e:?}");
+}

@@ -1,0 +1,551 @@
+//! Identification of the spring-damper parameters `theta` from measured FRF matrices at
+//! several poses: the paper's cost ([`super::cost`]) minimised from many starts (60 in the
+//! paper), each start a local fit with analytic derivatives ([`super::frf`]), the starts
+//! spread over all cores.
+//!
+//! The local fit. The cost is a sum over elements of `p`-means, `V = sum_e S_e^(1/p)` with
+//! `S_e = sum_k alpha_k |E_k|^p / sum alpha`: not a sum of squares, so it is minimised by
+//! majorisation (iteratively reweighted least squares): at the current `theta_0`, the
+//! concave map `S -> S^(1/p)` and, for `p < 2`, `E^2 -> |E|^p`, lie below their tangents,
+//! so `V(theta) <= const + sum_e sum_k w_ek E_k(theta)^2` with
+//! `w_ek = alpha_k |E_k(theta_0)|^(p-2) S_e(theta_0)^(1/p-1) / (2 sum alpha)`, equality at
+//! `theta_0`. Each round minimises that weighted sum of squares with the project's
+//! Levenberg-Marquardt ([`crate::lsq`], Jacobian rows from the FRF's analytic derivatives)
+//! and so lowers `V`; the rounds stop when `V` no longer falls. At a fixed point the
+//! gradients of the two agree, so it is a stationary point of `V` itself.
+//!
+//! The parameters are the logarithms of the stiffnesses and dampings (all positive, all of
+//! order one in scale).
+
+use super::cost::{db_of, Cost, DB_PER_NEPER};
+use super::frf::FrfPlan;
+use super::pose::RigidPose;
+use super::springs::Flexibilities;
+use super::ManipulatorError;
+use crate::lsq::{self, Damping, LmOptions, LmWorkspace, NormalEquations};
+use nalgebra::DMatrix;
+use num_complex::Complex64;
+use rand::{Rng, SeedableRng};
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+/// Choices of [`identify`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct IdentifyOptions {
+    /// Number of starts (the paper: 60). Start 0 is the nominal `theta` itself.
+    pub starts: usize,
+    /// The starts spread log-uniformly (a Latin hypercube) over `[nominal / spread,
+    /// nominal * spread]` per parameter [-].
+    pub spread: f64,
+    /// Seed of the start design.
+    pub seed: u64,
+    /// Worker threads; 0: every core.
+    pub threads: usize,
+    /// Levenberg-Marquardt evaluations per reweighting round at most.
+    pub evals_per_round: usize,
+    /// Reweighting rounds per start at most.
+    pub rounds: usize,
+}
+
+impl Default for IdentifyOptions {
+    fn default() -> Self {
+        IdentifyOptions {
+            starts: 60,
+            spread: 3.0,
+            seed: 1,
+            threads: 0,
+            evals_per_round: 40,
+            rounds: 60,
+        }
+    }
+}
+
+/// One start's run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StartOutcome {
+    /// Where it started.
+    pub start: Flexibilities,
+    /// Where it ended.
+    pub end: Flexibilities,
+    /// The paper's cost `V` at the end [dB].
+    pub cost: f64,
+    /// Model evaluations (every pose's FRF at every line) it used.
+    pub evaluations: usize,
+    /// `None`, or why the start was abandoned (a singular model on a line, say).
+    pub failure: Option<String>,
+}
+
+/// The result of [`identify`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct Identification {
+    /// The parameters of the lowest final cost.
+    pub best: Flexibilities,
+    /// Its cost `V` [dB] and per pose.
+    pub cost: f64,
+    pub cost_per_pose: Vec<f64>,
+    /// Every start's run, in start order (the paper's Figure 5).
+    pub starts: Vec<StartOutcome>,
+    /// The starts that reached the best minimum: final cost within [`GOOD_COST_RATIO`]
+    /// of the best.
+    pub good: Vec<usize>,
+    /// Per parameter (`k` then `c`, in the pose's pair order): the relative spread
+    /// `max / min - 1` of its final value over the good starts [-].
+    pub spread: Vec<f64>,
+}
+
+/// Final costs within this factor of the best count as the same minimum. The cost is an
+/// RMS of dB errors, so this is "within 10 % of the best fit's RMS": runs at the same
+/// minimum agree to the solver's tolerance, and the local minima of such fits lie several
+/// times higher (`../shared/design/multiaxis.md`, fact 6: ten times). A definition for the
+/// report, not a tuned constant: the best parameters do not depend on it.
+pub const GOOD_COST_RATIO: f64 = 1.1;
+
+/// The model FRF matrices of `theta` at every pose and line of `cost`.
+pub fn model_frf(
+    poses: &[RigidPose],
+    cost: &Cost,
+    theta: &Flexibilities,
+) -> Result<Vec<Vec<DMatrix<Complex64>>>, ManipulatorError> {
+    poses
+        .iter()
+        .zip(&cost.f_hz)
+        .map(|(pose, f)| Ok(FrfPlan::new(pose).frf(f, theta)?.g))
+        .collect()
+}
+
+/// Identifies `theta` from the measurement in `cost` (one [`RigidPose`] per measured pose,
+/// in the same order), starting around `nominal`.
+pub fn identify(
+    poses: &[RigidPose],
+    cost: &Cost,
+    nominal: &Flexibilities,
+    opts: &IdentifyOptions,
+) -> Result<Identification, ManipulatorError> {
+    check(poses, cost, nominal)?;
+    let starts = start_design(nominal, opts);
+    let outcomes = run_starts(poses, cost, &starts, opts);
+    let best = (0..outcomes.len())
+        .filter(|&i| outcomes[i].failure.is_none())
+        .min_by(|&a, &b| outcomes[a].cost.total_cmp(&outcomes[b].cost))
+        .ok_or_else(|| ManipulatorError::NoStartConverged {
+            starts: outcomes.len(),
+            first_failure: outcomes
+                .first()
+                .and_then(|o| o.failure.clone())
+                .unwrap_or_default(),
+        })?;
+    let best_cost = outcomes[best].cost;
+    let good: Vec<usize> = (0..outcomes.len())
+        .filter(|&i| {
+            outcomes[i].failure.is_none() && outcomes[i].cost <= GOOD_COST_RATIO * best_cost
+        })
+        .collect();
+    let spread = parameter_spread(&outcomes, &good);
+    let best_theta = outcomes[best].end.clone();
+    let cost_per_pose = cost.per_pose(&model_frf(poses, cost, &best_theta)?);
+    Ok(Identification {
+        best: best_theta,
+        cost: best_cost,
+        cost_per_pose,
+        starts: outcomes,
+        good,
+        spread,
+    })
+}
+
+/// The poses match the measurement and `nominal` has one pair per spring of each pose.
+fn check(
+    poses: &[RigidPose],
+    cost: &Cost,
+    nominal: &Flexibilities,
+) -> Result<(), ManipulatorError> {
+    if poses.len() != cost.f_hz.len() {
+        return Err(ManipulatorError::Length {
+            what: "poses",
+            expected: cost.f_hz.len(),
+            got: poses.len(),
+        });
+    }
+    for pose in poses {
+        if pose.springs.len() != nominal.pairs() {
+            return Err(ManipulatorError::Length {
+                what: "nominal spring-damper pairs",
+                expected: pose.springs.len(),
+                got: nominal.pairs(),
+            });
+        }
+        if pose.axes() != cost.axes {
+            return Err(ManipulatorError::Length {
+                what: "axes of a pose",
+                expected: cost.axes,
+                got: pose.axes(),
+            });
+        }
+    }
+    Flexibilities::new(
+        nominal.stiffness_nm_per_rad.clone(),
+        nominal.damping_nms_per_rad.clone(),
+    )?;
+    if nominal.damping_nms_per_rad.contains(&0.0) {
+        return Err(ManipulatorError::NotPositive {
+            what: "nominal damping_nms_per_rad (the fit's parameters are logarithms)",
+            index: nominal
+                .damping_nms_per_rad
+                .iter()
+                .position(|&c| c == 0.0)
+                .unwrap_or(0),
+            value: 0.0,
+        });
+    }
+    Ok(())
+}
+
+/// The starts: the nominal parameters, then a Latin hypercube in the logarithms over
+/// `nominal x [1/spread, spread]` (each parameter's range cut into `starts - 1` strata,
+/// each stratum used once, in a random order per parameter).
+pub fn start_design(nominal: &Flexibilities, opts: &IdentifyOptions) -> Vec<Vec<f64>> {
+    let base = nominal.to_log();
+    let mut rng = rand::rngs::StdRng::seed_from_u64(opts.seed);
+    let others = opts.starts.saturating_sub(1);
+    let half = opts.spread.max(1.0).ln();
+    let mut starts = vec![base.clone()];
+    let mut strata: Vec<Vec<usize>> = Vec::with_capacity(base.len());
+    for _ in 0..base.len() {
+        let mut s: Vec<usize> = (0..others).collect();
+        for i in (1..s.len()).rev() {
+            s.swap(i, rng.random_range(0..=i));
+        }
+        strata.push(s);
+    }
+    for i in 0..others {
+        let start = base
+            .iter()
+            .zip(&strata)
+            .map(|(b, s)| {
+                let u = (s[i] as f64 + rng.random_range(0.0..1.0)) / others as f64;
+                b + half * (2.0 * u - 1.0)
+            })
+            .collect();
+        starts.push(start);
+    }
+    starts.truncate(opts.starts.max(1));
+    starts
+}
+
+/// Every start's local fit, on the worker threads (each takes the next start not taken).
+fn run_starts(
+    poses: &[RigidPose],
+    cost: &Cost,
+    starts: &[Vec<f64>],
+    opts: &IdentifyOptions,
+) -> Vec<StartOutcome> {
+    let threads = if opts.threads == 0 {
+        std::thread::available_parallelism().map_or(1, |n| n.get())
+    } else {
+        opts.threads
+    }
+    .clamp(1, starts.len().max(1));
+    let next = AtomicUsize::new(0);
+    let work = || {
+        let mut fit = Fit::new(poses, cost);
+        let mut done = Vec::new();
+        loop {
+            let i = next.fetch_add(1, Ordering::Relaxed);
+            if i >= starts.len() {
+                break done;
+            }
+            done.push((i, fit.run(&starts[i], opts)));
+        }
+    };
+    let mut all: Vec<(usize, StartOutcome)> = if threads == 1 {
+        work()
+    } else {
+        std::thread::scope(|s| {
+            let handles: Vec<_> = (0..threads).map(|_| s.spawn(work)).collect();
+            handles
+                .into_iter()
+                .flat_map(|h| h.join().expect("identification worker panicked"))
+                .collect()
+        })
+    };
+    all.sort_by_key(|(i, _)| *i);
+    all.into_iter().map(|(_, o)| o).collect()
+}
+
+/// `max / min - 1` of each parameter over the starts `good`.
+fn parameter_spread(outcomes: &[StartOutcome], good: &[usize]) -> Vec<f64> {
+    let Some(&first) = good.first() else {
+        return Vec::new();
+    };
+    let values = |o: &StartOutcome| -> Vec<f64> {
+        o.end
+            .stiffness_nm_per_rad
+            .iter()
+            .chain(&o.end.damping_nms_per_rad)
+            .copied()
+            .collect()
+    };
+    let np = values(&outcomes[first]).len();
+    (0..np)
+        .map(|j| {
+            let (lo, hi) = good
+                .iter()
+                .map(|&i| values(&outcomes[i])[j])
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+                    (lo.min(v), hi.max(v))
+                });
+            hi / lo - 1.0
+        })
+        .collect()
+}
+
+/// Where one cost term's line sits: the term and the line's position in it.
+#[derive(Debug, Clone, Copy)]
+struct Use {
+    term: usize,
+    j: usize,
+}
+
+/// The local fit of one worker: the plans of every pose, the cost's lines grouped by
+/// pose and line (one FRF solve serves every element), the reweighting's weights, and the
+/// buffers of the FRF and its derivatives.
+struct Fit<'a> {
+    cost: &'a Cost,
+    plans: Vec<FrfPlan>,
+    /// Per pose: each line any term uses, with its uses.
+    lines: Vec<Vec<(usize, Vec<Use>)>>,
+    theta: Flexibilities,
+    /// The majorisation's weight per term and line.
+    w: Vec<Vec<f64>>,
+    /// The error [dB] per term and line at the last cost pass.
+    e: Vec<Vec<f64>>,
+    g: Vec<Complex64>,
+    dg: Vec<Complex64>,
+    row: Vec<f64>,
+}
+
+impl<'a> Fit<'a> {
+    fn new(poses: &[RigidPose], cost: &'a Cost) -> Self {
+        let plans: Vec<FrfPlan> = poses.iter().map(FrfPlan::new).collect();
+        let mut lines: Vec<Vec<(usize, Vec<Use>)>> = cost
+            .f_hz
+            .iter()
+            .map(|f| (0..f.len()).map(|k| (k, Vec::new())).collect())
+            .collect();
+        for (term, t) in cost.terms.iter().enumerate() {
+            for (j, &k) in t.lines.iter().enumerate() {
+                lines[t.pose][k].1.push(Use { term, j });
+            }
+        }
+        for l in &mut lines {
+            l.retain(|(_, uses)| !uses.is_empty());
+        }
+        let pairs = plans.first().map_or(0, |p| p.pairs());
+        let axes = cost.axes;
+        Fit {
+            cost,
+            plans,
+            lines,
+            theta: Flexibilities {
+                stiffness_nm_per_rad: vec![1.0; pairs],
+                damping_nms_per_rad: vec![1.0; pairs],
+            },
+            w: cost
+                .terms
+                .iter()
+                .map(|t| vec![0.0; t.lines.len()])
+                .collect(),
+            e: cost
+                .terms
+                .iter()
+                .map(|t| vec![0.0; t.lines.len()])
+                .collect(),
+            g: vec![Complex64::new(0.0, 0.0); axes * axes],
+            dg: vec![Complex64::new(0.0, 0.0); 2 * pairs * axes * axes],
+            row: vec![0.0; 2 * pairs],
+        }
+    }
+
+    /// One start: rounds of reweighting and LM until `V` stops falling.
+    fn run(&mut self, start: &[f64], opts: &IdentifyOptions) -> StartOutcome {
+        let start_theta = Flexibilities::from_log(start);
+        let mut theta = start.to_vec();
+        let mut evaluations = 0;
+        let failed = |why: String, evaluations| StartOutcome {
+            start: start_theta.clone(),
+            end: start_theta.clone(),
+            cost: f64::INFINITY,
+            evaluations,
+            failure: Some(why),
+        };
+        self.set_theta(&theta);
+        let Some(mut v) = self.errors() else {
+            return failed("the model is singular at the start".into(), 1);
+        };
+        evaluations += 1;
+        let lm_opts = LmOptions {
+            ftol: 1e-10,
+            xtol: 1e-10,
+            gtol: 1e-10,
+            max_evals: opts.evals_per_round.max(2),
+            damping: Damping::Nielsen,
+        };
+        let mut ws = LmWorkspace::new(self, theta.len());
+        for _ in 0..opts.rounds.max(1) {
+            self.reweight();
+            let out = match lsq::minimize(self, &theta, &lm_opts, &mut ws) {
+                Ok(o) => o,
+                Err(why) => return failed(why, evaluations),
+            };
+            evaluations += out.evaluations;
+            self.set_theta(&ws.theta);
+            let Some(v_new) = self.errors() else { break };
+            evaluations += 1;
+            // the majoriser guarantees no increase; a fall below the round-off of V ends it
+            if v_new >= v * (1.0 - 1e-9) {
+                if v_new < v {
+                    v = v_new;
+                    theta.copy_from_slice(&ws.theta);
+                }
+                break;
+            }
+            v = v_new;
+            theta.copy_from_slice(&ws.theta);
+        }
+        StartOutcome {
+            start: start_theta,
+            end: Flexibilities::from_log(&theta),
+            cost: v,
+            evaluations,
+            failure: None,
+        }
+    }
+
+    /// The errors [dB] at the current `theta` into `e`; `None` when the model is singular
+    /// on a line.
+    fn error_pass(&mut self) -> Option<()> {
+        for (pose, lines) in self.lines.iter().enumerate() {
+            for (k, uses) in lines {
+                let f = self.cost.f_hz[pose][*k];
+                self.plans[pose]
+                    .frf_into(f, &self.theta, &mut self.g)
+                    .ok()?;
+                for u in uses {
+                    let t = &self.cost.terms[u.term];
+                    self.e[u.term][u.j] =
+                        db_of(self.g[t.n * self.cost.axes + t.m]) - t.measured_db[u.j];
+                }
+            }
+        }
+        Some(())
+    }
+
+    /// The errors at the current `theta` into `e`, and `V`; `None` when the model is
+    /// singular on a line.
+    fn errors(&mut self) -> Option<f64> {
+        self.error_pass()?;
+        let v: f64 = self
+            .cost
+            .terms
+            .iter()
+            .zip(&self.e)
+            .map(|(t, e)| self.cost.term_value(t, e.iter().copied()))
+            .sum();
+        v.is_finite().then_some(v)
+    }
+
+    /// The majorisation's weights at the errors of the last [`Fit::errors`].
+    fn reweight(&mut self) {
+        let p = self.cost.spec.p;
+        for ((t, e), w) in self.cost.terms.iter().zip(&self.e).zip(&mut self.w) {
+            let s: f64 = t
+                .alpha
+                .iter()
+                .zip(e)
+                .map(|(a, e)| a * e.abs().powf(p))
+                .sum::<f64>()
+                / t.alpha_sum;
+            let outer = s.max(1e-300).powf(1.0 / p - 1.0) / (2.0 * t.alpha_sum);
+            for ((w, a), e) in w.iter_mut().zip(&t.alpha).zip(e) {
+                // |E|^(p-2), floored for p < 2 where E = 0 (1e-6 dB: far below any noise)
+                let inner = if p == 2.0 {
+                    1.0
+                } else {
+                    e.abs().max(1e-6).powf(p - 2.0)
+                };
+                *w = a * inner * outer;
+            }
+        }
+    }
+}
+
+impl NormalEquations for Fit<'_> {
+    type Scratch = ();
+
+    fn scratch(&self) {}
+
+    fn set_theta(&mut self, theta: &[f64]) {
+        let s = self.theta.pairs();
+        for (x, t) in self.theta.stiffness_nm_per_rad.iter_mut().zip(&theta[..s]) {
+            *x = t.exp();
+        }
+        for (x, t) in self.theta.damping_nms_per_rad.iter_mut().zip(&theta[s..]) {
+            *x = t.exp();
+        }
+    }
+
+    fn cost(&mut self, _: &mut ()) -> Option<f64> {
+        self.error_pass()?;
+        let sum: f64 = self
+            .w
+            .iter()
+            .zip(&self.e)
+            .flat_map(|(w, e)| w.iter().zip(e).map(|(w, e)| w * e * e))
+            .sum();
+        sum.is_finite().then_some(sum)
+    }
+
+    fn normal_after_cost(&mut self, _: &mut (), jtj: &mut [f64], jtr: &mut [f64]) -> bool {
+        let np = self.row.len();
+        let nn = self.cost.axes * self.cost.axes;
+        jtj.fill(0.0);
+        jtr.fill(0.0);
+        for (pose, lines) in self.lines.iter().enumerate() {
+            for (k, uses) in lines {
+                let f = self.cost.f_hz[pose][*k];
+                if self.plans[pose]
+                    .frf_and_derivatives_into(f, &self.theta, &mut self.g, &mut self.dg)
+                    .is_err()
+                {
+                    return false;
+                }
+                for u in uses {
+                    let t = &self.cost.terms[u.term];
+                    let el = t.n * self.cost.axes + t.m;
+                    let g = self.g[el];
+                    let sw = self.w[u.term][u.j].sqrt();
+                    let r = sw * (db_of(g) - t.measured_db[u.j]);
+                    let ginv = g.inv();
+                    for (p, x) in self.row.iter_mut().enumerate() {
+                        // d(20 log10 |G|) = DB_PER_NEPER Re(dG / G)
+                        *x = sw * DB_PER_NEPER * (self.dg[p * nn + el] * ginv).re;
+                    }
+                    for a in 0..np {
+                        jtr[a] += self.row[a] * r;
+                        for b in a..np {
+                            jtj[a * np + b] += self.row[a] * self.row[b];
+                        }
+                    }
+                }
+            }
+        }
+        for a in 0..np {
+            for b in 0..a {
+                jtj[a * np + b] = jtj[b * np + a];
+            }
+        }
+        jtj.iter().chain(jtr.iter()).all(|x| x.is_finite())
+    }
+}
+
+#[cfg(test)]
+mod tests;

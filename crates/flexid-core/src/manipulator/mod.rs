@@ -31,6 +31,7 @@ pub mod cost;
 pub mod frf;
 pub mod identify;
 pub mod pose;
+pub mod sampled;
 pub mod springs;
 #[cfg(test)]
 mod tests_support;
@@ -39,6 +40,7 @@ pub use cost::{Cost, CostSpec, PoseMeasurement, Weighting};
 pub use frf::{FrfPlan, ModelFrf};
 pub use identify::{identify, Identification, IdentifyOptions, StartOutcome};
 pub use pose::{Motor, RigidPose};
+pub use sampled::{PositionLoop, SampledPose};
 pub use springs::{Flexibilities, Spring, SpringKind};
 
 /// Errors of the manipulator model.

@@ -4,30 +4,15 @@ use crate::manipulator::springs::{Spring, SpringKind};
 use crate::manipulator::tests_support::two_axis_pose;
 
 /// The same model as a first-order state space `x' = A x + B u`, `v = C x` built with
-/// nalgebra (the coordinates' matrices assembled entry by entry, not by the plan), its FRF
+/// nalgebra (from [`second_order`](crate::manipulator::sampled::second_order), not the
+/// plan's per-line assembly), its FRF
 /// `C (sI - A)^-1 B` by nalgebra's LU: the independent reference.
 fn state_space_frf(pose: &RigidPose, theta: &Flexibilities, f_hz: f64) -> DMatrix<Complex64> {
     let na = pose.arm_coords();
     let ax = pose.axes();
     let n = na + ax;
-    let mut m = DMatrix::<f64>::zeros(n, n);
-    let mut k = DMatrix::<f64>::zeros(n, n);
-    let mut c = DMatrix::<f64>::zeros(n, n);
-    m.view_mut((0, 0), (na, na)).copy_from(&pose.arm_mass);
-    k.view_mut((0, 0), (na, na))
-        .copy_from(&pose.gravity_stiffness);
-    for (i, mo) in pose.motors.iter().enumerate() {
-        m[(na + i, na + i)] = mo.rotor_inertia_kgm2 * mo.gear_ratio.powi(2);
-    }
-    for (p, s) in pose.springs.iter().enumerate() {
-        let mut e = nalgebra::DVector::<f64>::zeros(n);
-        e[s.arm_coord] = 1.0;
-        if let SpringKind::Gear { joint } = s.kind {
-            e[na + joint] = -1.0;
-        }
-        k += &e * e.transpose() * theta.stiffness_nm_per_rad[p];
-        c += &e * e.transpose() * theta.damping_nms_per_rad[p];
-    }
+    // the matrices the sampled plant uses, assembled apart from the plan's per-line Z
+    let (m, c, k) = crate::manipulator::sampled::second_order(pose, theta);
     let minv = m.clone().try_inverse().unwrap();
     let mut a = DMatrix::<f64>::zeros(2 * n, 2 * n);
     a.view_mut((0, n), (n, n))

@@ -28,6 +28,7 @@
 
 pub mod clu;
 pub mod cost;
+pub mod flex_file;
 pub mod frf;
 pub mod identify;
 pub mod pose;

@@ -60,6 +60,10 @@ use crate::excitation::OrthogonalMultisine;
 /// is reported as rank-deficient instead of giving a meaningless inverse.
 pub const MAX_INPUT_CONDITION: f64 = 1e10;
 
+/// Iterations the SVD of the small `N x P` input matrix may take before it is given up
+/// (reported as rank-deficient); a few dozen suffice.
+const SVD_MAX_ITERATIONS: usize = 10_000;
+
 /// Why the FRF matrix could not be planned, fed or estimated. Every variant carries the
 /// numbers needed to act on it.
 #[derive(Debug, Clone, PartialEq, Error)]
@@ -133,6 +137,14 @@ pub enum MimoError {
         pushed: usize,
         /// Leading periods discarded per experiment.
         transient_periods: usize,
+    },
+    /// A mean phasor at a line is not finite (a NaN or infinite sample was pushed).
+    #[error("non-finite torque or velocity phasor at line {line} ({freq_hz} Hz)")]
+    NonFinite {
+        /// DFT line index.
+        line: usize,
+        /// Its frequency \[Hz\].
+        freq_hz: f64,
     },
     /// The input matrix `U` is (numerically) rank-deficient at a line: the experiments do
     /// not excite the axes independently there.
@@ -485,7 +497,8 @@ impl MimoEstimator {
     /// The FRF matrix per excited line with the variance of every element and the
     /// symmetrised estimate (see the module doc for the formulas).
     ///
-    /// Errors: `NoSteadyPeriod` for an experiment without one, `RankDeficient` where the
+    /// Errors: `NoSteadyPeriod` for an experiment without one, `NonFinite` for a NaN or
+    /// infinite mean phasor, `RankDeficient` where the
     /// condition number of `U` exceeds [`MAX_INPUT_CONDITION`].
     pub fn estimate(&self) -> Result<MimoFrf, MimoError> {
         let periods = self.steady_periods()?;
@@ -504,6 +517,16 @@ impl MimoEstimator {
         };
         for (j, &k) in self.lines.iter().enumerate() {
             let (u, y) = self.mean_matrices(j);
+            if !u
+                .iter()
+                .chain(y.iter())
+                .all(|v| v.re.is_finite() && v.im.is_finite())
+            {
+                return Err(MimoError::NonFinite {
+                    line: k,
+                    freq_hz: k as f64 * df,
+                });
+            }
             let (u_pinv, condition) = right_inverse(&u, k, k as f64 * df)?;
             let g = &y * &u_pinv;
             let noise: Option<Vec<DMatrix<Complex64>>> = (0..self.experiments())
@@ -594,15 +617,19 @@ fn right_inverse(
     line: usize,
     freq_hz: f64,
 ) -> Result<(DMatrix<Complex64>, f64), MimoError> {
-    let svd = u.clone().svd(true, true);
+    let rank_deficient = |condition| MimoError::RankDeficient {
+        line,
+        freq_hz,
+        condition,
+    };
+    let svd = u
+        .clone()
+        .try_svd(true, true, f64::EPSILON, SVD_MAX_ITERATIONS)
+        .ok_or_else(|| rank_deficient(f64::NAN))?;
     let (hi, lo) = (svd.singular_values.max(), svd.singular_values.min());
     let condition = if lo > 0.0 { hi / lo } else { f64::INFINITY };
-    if !(condition <= MAX_INPUT_CONDITION) {
-        return Err(MimoError::RankDeficient {
-            line,
-            freq_hz,
-            condition,
-        });
+    if condition.is_nan() || condition > MAX_INPUT_CONDITION {
+        return Err(rank_deficient(condition));
     }
     let pinv = svd
         .pseudo_inverse(0.0)

@@ -165,21 +165,36 @@ fn noise_free_estimate_is_the_plants_sampled_frf() {
         let frf = est.estimate().unwrap();
         assert_eq!(frf.lines, ms.excited_lines);
         assert_eq!(frf.periods, vec![STEADY; ms.experiments()]);
-        let mut worst = 0.0_f64;
-        let mut weakest = f64::INFINITY;
+        // relative error of elements down to 1e-4 of their row's diagonal, and of every
+        // element relative to that diagonal (the weakest, at 1e-7 of it, are at the
+        // rounding of the full-scale signals)
+        let (mut worst, mut worst_weak, mut weakest) = (0.0_f64, 0.0_f64, f64::INFINITY);
         for (j, &k) in frf.lines.iter().enumerate() {
             let g0 = plant.frf(k, PERIOD);
             assert!((frf.condition[j] - 1.0).abs() < 1e-9);
             for n in 0..axes {
                 for m in 0..axes {
-                    worst = worst.max(rel(frf.g[j][(n, m)], g0[(n, m)]));
+                    let (g0_nm, diag) = (g0[(n, m)], g0[(n, n)].norm());
                     // the plant is reciprocal, so the symmetrised estimate is exact too
-                    worst = worst.max(rel(frf.g_sym[j][(n, m)], g0[(n, m)]));
-                    weakest = weakest.min(g0[(n, m)].norm() / g0[(n, n)].norm());
+                    for g in [frf.g[j][(n, m)], frf.g_sym[j][(n, m)]] {
+                        if g0_nm.norm() >= 1e-4 * diag {
+                            worst = worst.max(rel(g, g0_nm));
+                        }
+                        worst_weak = worst_weak.max((g - g0_nm).norm() / diag);
+                    }
+                    weakest = weakest.min(g0_nm.norm() / diag);
                 }
             }
         }
+        eprintln!(
+            "{axes} axes, {blocks} blocks: worst relative error {worst:.1e}, worst error over \
+             the diagonal {worst_weak:.1e}, weakest element / diagonal {weakest:.1e}"
+        );
         assert!(worst < 1e-8, "{axes} axes, {blocks} blocks: {worst:e}");
+        assert!(
+            worst_weak < 1e-12,
+            "{axes} axes, {blocks} blocks: {worst_weak:e}"
+        );
         // the off-diagonal elements reach well below the diagonal ones in the band
         if axes > 1 {
             assert!(weakest < 0.05, "{weakest}");
@@ -611,4 +626,14 @@ fn errors_not_panics() {
         other => panic!("expected RankDeficient, got {other:?}"),
     }
     assert_eq!(n, PERIOD);
+    // a NaN sample reaches every line's mean
+    let mut est = MimoEstimator::from_multisine(&ms).unwrap();
+    let mut bad = ms.period(1, 1).to_vec();
+    bad[7] = f64::NAN;
+    est.push_period(0, &u, &y).unwrap();
+    est.push_period(1, &[ms.period(1, 0), &bad], &y).unwrap();
+    assert!(matches!(
+        est.estimate(),
+        Err(MimoError::NonFinite { line, .. }) if line == ms.excited_lines[0]
+    ));
 }

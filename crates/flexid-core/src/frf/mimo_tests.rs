@@ -98,6 +98,30 @@ impl Plant {
         y
     }
 
+    /// Closed loop from rest: the logged torque `u = r - kd y` [N m], `y = C x + noise`
+    /// the measured motor velocity [rad/s] (noise-free when `noise` is `None`).
+    fn simulate_closed(&self, r: &[Vec<f64>], kd: f64, noise: Option<&[Vec<f64>]>) -> Record {
+        let (ns, axes) = (self.ad.nrows(), r.len());
+        let len = r[0].len();
+        let mut x = vec![0.0; ns];
+        let mut next = vec![0.0; ns];
+        let mut u = vec![vec![0.0; len]; axes];
+        let mut y = vec![vec![0.0; len]; axes];
+        for t in 0..len {
+            for n in 0..axes {
+                let e = noise.map_or(0.0, |w| w[n][t]);
+                y[n][t] = (0..ns).map(|s| self.c[(n, s)] * x[s]).sum::<f64>() + e;
+                u[n][t] = r[n][t] - kd * y[n][t];
+            }
+            for (i, v) in next.iter_mut().enumerate() {
+                *v = (0..ns).map(|s| self.ad[(i, s)] * x[s]).sum::<f64>()
+                    + (0..axes).map(|a| self.bd[(i, a)] * u[a][t]).sum::<f64>();
+            }
+            std::mem::swap(&mut x, &mut next);
+        }
+        Record { u, y }
+    }
+
     /// The ZOH-sampled FRF `C (z I - Ad)^-1 Bd` at line `k` of a period of `n` samples.
     fn frf(&self, k: usize, n: usize) -> CMat {
         let z = Complex64::from_polar(1.0, 2.0 * PI * k as f64 / n as f64);
@@ -232,10 +256,10 @@ struct Check {
     mse: DMatrix<f64>,
 }
 
-fn monte_carlo(axes: usize, blocks: usize, realisations: usize) -> (Check, Check) {
-    let ms = multisine(axes, blocks);
-    let plant = Plant::chain(axes, FS);
-    let steady: Vec<Record> = records(&ms, &plant)
+/// Open loop: the steady periods of the plant's response to the multisines with white
+/// noise on the measured torques (2 % of their RMS) and velocities (5 %).
+fn open_loop(ms: &OrthogonalMultisine, plant: &Plant) -> impl FnMut(&mut StdRng) -> Vec<Record> {
+    let steady: Vec<Record> = records(ms, plant)
         .into_iter()
         .map(|r| Record {
             u: r.u
@@ -248,13 +272,28 @@ fn monte_carlo(axes: usize, blocks: usize, realisations: usize) -> (Check, Check
                 .collect(),
         })
         .collect();
+    move |r| noisy(&steady, 0.02, 0.05, r)
+}
+
+/// `realisations` noisy records of the experiments of `ms` from `realise`, each estimated
+/// after `transient` periods, against the plant's FRF.
+fn monte_carlo(
+    ms: &OrthogonalMultisine,
+    plant: &Plant,
+    realisations: usize,
+    transient: usize,
+    mut realise: impl FnMut(&mut StdRng) -> Vec<Record>,
+) -> (Check, Check) {
+    let axes = ms.axes;
     let lines = ms.excited_lines.len();
     let g0: Vec<CMat> = ms
         .excited_lines
         .iter()
         .map(|&k| plant.frf(k, PERIOD))
         .collect();
-    let mut est = MimoEstimator::from_multisine(&ms).unwrap();
+    let mut est = MimoEstimator::from_multisine(ms)
+        .unwrap()
+        .with_transient_periods(transient);
     let zero_c = || vec![CMat::zeros(axes, axes); lines];
     let zero_r = || vec![DMatrix::<f64>::zeros(axes, axes); lines];
     let (mut sum_g, mut sum_s) = (zero_c(), zero_c());
@@ -266,7 +305,7 @@ fn monte_carlo(axes: usize, blocks: usize, realisations: usize) -> (Check, Check
     let mut r = rng(1000 + axes as u64);
     for _ in 0..realisations {
         est.reset();
-        push_all(&mut est, &noisy(&steady, 0.02, 0.05, &mut r), PERIOD);
+        push_all(&mut est, &realise(&mut r), PERIOD);
         let f = est.estimate().unwrap();
         for j in 0..lines {
             for n in 0..axes {
@@ -318,41 +357,113 @@ fn monte_carlo(axes: usize, blocks: usize, realisations: usize) -> (Check, Check
 #[test]
 fn predicted_variance_matches_the_monte_carlo_spread() {
     for (axes, blocks, reals) in [(3, 1, 200), (2, 2, 200)] {
-        let (g, s) = monte_carlo(axes, blocks, reals);
-        eprintln!(
-            "{axes} axes, {blocks} blocks, {reals} realisations\n chi2 G {:.3}\n spread G {:.3}\n \
-             bias G {:.3}\n chi2 S {:.3}\n spread S {:.3}\n bias S {:.3}",
-            g.chi2, g.spread, g.bias, s.chi2, s.spread, s.bias
-        );
-        for n in 0..axes {
-            for m in 0..axes {
-                for (name, c) in [("G", &g), ("S", &s)] {
-                    let at = (n, m);
-                    assert!(
-                        (0.7..1.4).contains(&c.chi2[at]),
-                        "{name} chi2 {at:?}: {}",
-                        c.chi2[at]
-                    );
-                    assert!(
-                        (0.85..1.15).contains(&c.spread[at]),
-                        "{name} spread {at:?}: {}",
-                        c.spread[at]
-                    );
-                    // |mean error|^2 over its variance: mean 1 for an unbiased estimate
-                    assert!(c.bias[at] < 2.0, "{name} bias {at:?}: {}", c.bias[at]);
-                }
-                if n != m {
-                    assert!(
-                        s.mse[(n, m)] < 0.75 * g.mse[(n, m)].min(g.mse[(m, n)]),
-                        "symmetrised ({n}, {m}): {} vs {} {}",
-                        s.mse[(n, m)],
-                        g.mse[(n, m)],
-                        g.mse[(m, n)]
-                    );
-                }
+        let ms = multisine(axes, blocks);
+        let plant = Plant::chain(axes, FS);
+        let (g, s) = monte_carlo(&ms, &plant, reals, 0, open_loop(&ms, &plant));
+        let label = format!("open loop, {axes} axes, {blocks} blocks, {reals} realisations");
+        assert_consistent(&label, &g, &s, true);
+    }
+}
+
+/// The checks of one Monte Carlo run, per element; `lower_sym`: the symmetrised estimate's
+/// spread is also asserted below both of its elements'.
+fn assert_consistent(label: &str, g: &Check, s: &Check, lower_sym: bool) {
+    let axes = g.chi2.nrows();
+    eprintln!(
+        "{label}\n chi2 G {:.3}\n spread G {:.3}\n bias G {:.3}\n chi2 S {:.3}\n spread S \
+         {:.3}\n bias S {:.3}",
+        g.chi2, g.spread, g.bias, s.chi2, s.spread, s.bias
+    );
+    for n in 0..axes {
+        for m in 0..axes {
+            for (name, c) in [("G", g), ("S", s)] {
+                let at = (n, m);
+                assert!(
+                    (0.7..1.4).contains(&c.chi2[at]),
+                    "{label}: {name} chi2 {at:?}: {}",
+                    c.chi2[at]
+                );
+                assert!(
+                    (0.85..1.15).contains(&c.spread[at]),
+                    "{label}: {name} spread {at:?}: {}",
+                    c.spread[at]
+                );
+                // |mean error|^2 over its variance: mean 1 for an unbiased estimate
+                assert!(
+                    c.bias[at] < 2.0,
+                    "{label}: {name} bias {at:?}: {}",
+                    c.bias[at]
+                );
+            }
+            if lower_sym && n != m {
+                assert!(
+                    s.mse[(n, m)] < 0.75 * g.mse[(n, m)].min(g.mse[(m, n)]),
+                    "{label}: symmetrised ({n}, {m}): {} vs {} {}",
+                    s.mse[(n, m)],
+                    g.mse[(n, m)],
+                    g.mse[(m, n)]
+                );
             }
         }
     }
+}
+
+/// Closed loop (the direct method under a feedback): each axis's torque is its multisine
+/// minus `kd` times the measured motor velocity, and the velocity is measured with white
+/// noise of `rel_y` times its RMS; the logged torque (what the estimator gets) then holds
+/// the fed-back noise, correlated with the velocity's, so the variance's cross term
+/// `C_yu` matters. Transient periods included (the noise drives the plant).
+fn closed_loop<'a>(
+    ms: &OrthogonalMultisine,
+    plant: &'a Plant,
+    kd: f64,
+    rel_y: f64,
+) -> impl FnMut(&mut StdRng) -> Vec<Record> + 'a {
+    let refs: Vec<Vec<Vec<f64>>> = (0..ms.experiments())
+        .map(|p| {
+            (0..ms.axes)
+                .map(|n| ms.repeat(p, n, TRANSIENT + STEADY))
+                .collect()
+        })
+        .collect();
+    let clean: Vec<Record> = refs
+        .iter()
+        .map(|r| plant.simulate_closed(r, kd, None))
+        .collect();
+    let sigma: Vec<Vec<f64>> = clean
+        .iter()
+        .map(|rec| {
+            rec.y
+                .iter()
+                .map(|c| rel_y * (c.iter().map(|v| v * v).sum::<f64>() / c.len() as f64).sqrt())
+                .collect()
+        })
+        .collect();
+    move |r| {
+        refs.iter()
+            .zip(&sigma)
+            .map(|(rp, sp)| {
+                let noise: Vec<Vec<f64>> = sp.iter().map(|&s| gauss(r, rp[0].len(), s)).collect();
+                plant.simulate_closed(rp, kd, Some(&noise))
+            })
+            .collect()
+    }
+}
+
+/// The variance formula in closed loop, where the torque's noise is the fed-back velocity
+/// noise: 3 axes, one block.
+#[test]
+fn predicted_variance_holds_in_closed_loop() {
+    let ms = multisine(3, 1);
+    let plant = Plant::chain(3, FS);
+    let realise = closed_loop(&ms, &plant, 0.2, 0.1);
+    let (g, s) = monte_carlo(&ms, &plant, 150, TRANSIENT, realise);
+    assert_consistent(
+        "closed loop, 3 axes, 1 block, 150 realisations",
+        &g,
+        &s,
+        false,
+    );
 }
 
 /// Straightforward reference: the direct DFT of every steady period, two-pass means and

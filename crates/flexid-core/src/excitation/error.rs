@@ -148,6 +148,22 @@ pub enum ExcitationError {
         /// Name of the count, e.g. `"periods"`.
         which: &'static str,
     },
+    /// A multi-axis design gives a number of per-axis amplitudes other than its axes.
+    #[error("{got} per-axis amplitudes given for {axes} axes")]
+    AxisCountMismatch {
+        /// Number of axes of the design.
+        axes: usize,
+        /// Number of per-axis amplitudes given.
+        got: usize,
+    },
+    /// A per-axis RMS torque is not positive and finite.
+    #[error("RMS torque of axis {axis} must be positive and finite, got {value_nm} N m")]
+    InvalidAxisAmplitude {
+        /// Index of the axis (0-based).
+        axis: usize,
+        /// The offending RMS torque [N m].
+        value_nm: f64,
+    },
     /// The FFT backend rejected its buffers (an internal invariant; should not happen).
     #[error("internal FFT error: {detail}")]
     Fft {

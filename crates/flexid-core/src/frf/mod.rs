@@ -16,6 +16,9 @@
 //! * [`estimate_lpm`]: one non-periodic record (a single sweep), the local polynomial
 //!   method on the whole record's DFT, with the transient and a noise variance per line;
 //!   [`LpmPlan`]: the same estimate planned for many responses to one input.
+//! * [`MimoEstimator`]: the `N x N` FRF matrix of coupled axes from orthogonal multisine
+//!   experiments (`G = Y U^+` per line), with the variance of every element and the
+//!   symmetrised estimate ([`MimoFrf`]).
 //! * [`WelchH1`] / [`welch_h1`]: arbitrary excitation, Welch-averaged H1 with coherence.
 //! * [`differenced_velocity`], [`difference_quotient_response`], [`remove_linear_trend`]:
 //!   turning drifting encoder position into something an FRF can be taken from.
@@ -25,6 +28,7 @@
 mod error;
 pub mod lpm;
 mod lpm_plan;
+mod mimo;
 mod periodic;
 mod plan_cache;
 pub mod quantisation;
@@ -45,6 +49,7 @@ mod welch;
 pub use error::FrfError;
 pub use lpm::{estimate_lpm, estimate_lpm_with_floor, lpm_dof};
 pub use lpm_plan::{LpmPlan, LpmScratch};
+pub use mimo::{MimoError, MimoEstimator, MimoFrf, MAX_INPUT_CONDITION};
 pub use periodic::{
     estimate_periodic, NonExcitedLevels, PeriodicEstimator, DEFAULT_INFER_THRESHOLD,
 };

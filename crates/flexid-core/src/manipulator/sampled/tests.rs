@@ -77,3 +77,86 @@ fn simulation_and_frf_agree() {
         }
     }
 }
+
+/// The FRF matrix estimated from orthogonal random-phase multisines on the sampled plant
+/// under its position loop (noisy encoders: the loop feeds the noise back into the
+/// torque, the estimate uses the total torque) equals the plant's own FRF matrix within
+/// the estimate's own uncertainty: `|G^ - G|^2 / var` averages one over every line and
+/// element, the weak off-diagonal ones included.
+#[test]
+fn orthogonal_multisines_measure_the_plants_frf_within_its_uncertainty() {
+    use crate::excitation::OrthogonalMultisineDesign;
+    use crate::frf::MimoEstimator;
+    use rand::SeedableRng;
+    use rand_distr::{Distribution, Normal};
+    let (pose, theta) = two_axis_pose(8);
+    let fs = 1000.0;
+    let mut plant = SampledPose::new(&pose, &theta, fs).unwrap();
+    let pl = PositionLoop::for_pose(&pose, 2.0);
+    let axes = plant.axes();
+    let design = OrthogonalMultisineDesign {
+        blocks: 2,
+        seed: 3,
+        ..OrthogonalMultisineDesign::new(axes, fs, 1000, [3.0, 200.0], 0.05)
+    };
+    let ms = design.generate().unwrap();
+    let (transient, periods) = (2, 8);
+    let mut est = MimoEstimator::from_multisine(&ms)
+        .unwrap()
+        .with_transient_periods(transient);
+    let noise = Normal::new(0.0, 2e-6).unwrap(); // encoder noise [rad, motor side]
+    let mut rng = rand::rngs::StdRng::seed_from_u64(21);
+    let n = ms.period_samples();
+    for e in 0..ms.experiments() {
+        let mut x = vec![0.0; plant.states()];
+        let mut p = vec![0.0; axes];
+        let mut meas_prev = vec![0.0; axes];
+        let mut meas = vec![0.0; axes];
+        let mut fb = vec![0.0; axes];
+        let mut u = vec![vec![0.0; n]; axes];
+        let mut y = vec![vec![0.0; n]; axes];
+        let mut uk = vec![0.0; axes];
+        for period in 0..transient + periods {
+            for k in 0..n {
+                plant.motor_positions(&x, &mut p);
+                for i in 0..axes {
+                    meas[i] = p[i] + noise.sample(&mut rng);
+                }
+                pl.torque(&meas, &meas_prev, fs, &mut fb);
+                for i in 0..axes {
+                    uk[i] = fb[i] + ms.period(e, i)[k];
+                    u[i][k] = uk[i];
+                    y[i][k] = (meas[i] - meas_prev[i]) * fs;
+                }
+                plant.step(&mut x, &uk);
+                meas_prev.copy_from_slice(&meas);
+            }
+            let us: Vec<&[f64]> = u.iter().map(|v| v.as_slice()).collect();
+            let ys: Vec<&[f64]> = y.iter().map(|v| v.as_slice()).collect();
+            est.push_period(e, &us, &ys).unwrap();
+            let _ = period;
+        }
+    }
+    let frf = est.estimate().unwrap();
+    let (mut sum, mut count) = (0.0, 0usize);
+    let mut per_element = vec![(0.0, 0usize); axes * axes];
+    for (k, f) in frf.freq_hz.iter().enumerate() {
+        let g = plant.frf(*f).unwrap();
+        for i in 0..axes {
+            for j in 0..axes {
+                let z2 = (frf.g[k][(i, j)] - g[(i, j)]).norm_sqr() / frf.var[k][(i, j)];
+                sum += z2;
+                count += 1;
+                per_element[i * axes + j].0 += z2;
+                per_element[i * axes + j].1 += 1;
+            }
+        }
+    }
+    let mean = sum / count as f64;
+    // the variance is itself estimated from 8 periods: its inverse averages 8/6 x
+    assert!((0.8..1.5).contains(&mean), "mean z2 {mean}");
+    for (e, (s, c)) in per_element.iter().enumerate() {
+        let m = s / *c as f64;
+        assert!((0.7..1.7).contains(&m), "element {e}: mean z2 {m}");
+    }
+}

@@ -1,6 +1,6 @@
 //! Forward kinematics: each link's frame, joint axis and body in the base frame at a pose.
-//! The dynamics calls collect these into one stack (a `Vec` of length `dof()`, their only
-//! scratch allocation) and recurse over it.
+//! The dynamics calls collect these into one stack (a `Vec` of length `dof()`) and
+//! recurse over it.
 
 use nalgebra::{Isometry3, Matrix3, Translation3, UnitQuaternion, Vector3};
 

@@ -16,8 +16,8 @@
 //! * [`Inertial`], [`Link`], [`JointKind`], [`SerialRobot`]: the model (this file);
 //!   [`Inertial`]'s algebra (re-expression, combination) in `inertial.rs`.
 //! * `urdf.rs`: [`SerialRobot::from_urdf_str`], a serial chain from URDF text.
-//! * `kinematics.rs`: the link frames in the base frame (forward kinematics), the one
-//!   scratch stack each dynamics call allocates.
+//! * `kinematics.rs`: the link frames in the base frame (forward kinematics), the stack of
+//!   per-link states each dynamics call recurses over.
 //! * `rnea.rs`: [`SerialRobot::inverse_dynamics`] (recursive Newton-Euler).
 //! * `crba.rs`: [`SerialRobot::mass_matrix`] (composite rigid bodies).
 //! * `gravity.rs`: [`SerialRobot::gravity_torque`] and [`SerialRobot::gravity_stiffness`].
@@ -30,7 +30,8 @@
 //! link's frame) unless named otherwise.
 //!
 //! Cost: each call allocates its output and one stack of per-link states (length
-//! `dof()`); nothing per link beyond that.
+//! `dof()`; inverse dynamics a second one, the bodies' wrenches); nothing per link beyond
+//! that. O(n) for g and inverse dynamics, O(n^2) for M and dg/dq.
 
 mod crba;
 mod gravity;

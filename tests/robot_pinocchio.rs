@@ -2,7 +2,8 @@
 //! on flexid wrote: the mass matrix M(q) (`crba`), the gravity torque g(q)
 //! (`computeGeneralizedGravity`) and its derivative dg/dq
 //! (`computeGeneralizedGravityDerivatives`) of the reference arm `robots/flexid-arm6.urdf`
-//! at 100 random poses from a fixed seed, each within 1e-10 relative.
+//! at 100 random poses from a fixed seed, each within 1e-10 relative; and, beyond the
+//! issue, inverse dynamics (`rnea`) at random rates and accelerations at those poses.
 //!
 //! The norm: per pose and quantity, the largest absolute difference of any entry divided by
 //! the largest absolute entry of Pinocchio's matrix (or vector).
@@ -52,7 +53,7 @@ fn rel_err(ours: &DMatrix<f64>, theirs: &DMatrix<f64>) -> f64 {
 }
 
 #[test]
-fn mass_matrix_gravity_and_gravity_stiffness_match_pinocchio() {
+fn mass_matrix_gravity_stiffness_and_inverse_dynamics_match_pinocchio() {
     let Some(py) = pinocchio_python() else {
         let msg = "no .venv-pinocchio with pinocchio (run scripts/pyenv-pinocchio.sh)";
         if std::env::var("CI").is_ok_and(|v| v == "true") {
@@ -66,16 +67,22 @@ fn mass_matrix_gravity_and_gravity_stiffness_match_pinocchio() {
     let robot = SerialRobot::from_urdf_str(&urdf).expect("the reference URDF imports");
 
     let mut rng = StdRng::seed_from_u64(17);
-    let poses: Vec<Vec<f64>> = (0..POSES)
-        .map(|_| {
-            (0..robot.dof())
-                .map(|_| rng.random_range(-std::f64::consts::PI..std::f64::consts::PI))
-                .collect()
-        })
+    let mut random = |half: f64| -> Vec<f64> {
+        (0..robot.dof())
+            .map(|_| rng.random_range(-half..half))
+            .collect()
+    };
+    // (q [rad], qd [rad/s], qdd [rad/s^2])
+    let states: Vec<(Vec<f64>, Vec<f64>, Vec<f64>)> = (0..POSES)
+        .map(|_| (random(std::f64::consts::PI), random(3.0), random(10.0)))
+        .collect();
+    let json: Vec<serde_json::Value> = states
+        .iter()
+        .map(|(q, qd, qdd)| serde_json::json!({"q": q, "qd": qd, "qdd": qdd}))
         .collect();
     let dir = tempfile::tempdir().unwrap();
     let poses_file = dir.path().join("poses.json");
-    std::fs::write(&poses_file, serde_json::to_string(&poses).unwrap()).unwrap();
+    std::fs::write(&poses_file, serde_json::to_string(&json).unwrap()).unwrap();
 
     let out = Command::new(&py)
         .arg(root().join("tests/interop/pinocchio_dynamics.py"))
@@ -101,8 +108,8 @@ fn mass_matrix_gravity_and_gravity_stiffness_match_pinocchio() {
 
     let results = reference["poses"].as_array().expect("poses");
     assert_eq!(results.len(), POSES);
-    let (mut worst_m, mut worst_g, mut worst_k) = (0.0f64, 0.0f64, 0.0f64);
-    for (q, theirs) in poses.iter().zip(results) {
+    let mut worst = [0.0f64; 4];
+    for ((q, qd, qdd), theirs) in states.iter().zip(results) {
         let m = rel_err(&robot.mass_matrix(q).unwrap(), &matrix(&theirs["M"]));
         let g = vector(&theirs["g"]);
         let g = (robot.gravity_torque(q).unwrap() - &g).amax() / g.amax();
@@ -110,16 +117,19 @@ fn mass_matrix_gravity_and_gravity_stiffness_match_pinocchio() {
             &robot.gravity_stiffness(q).unwrap(),
             &matrix(&theirs["dg_dq"]),
         );
+        let tau = vector(&theirs["tau"]);
+        let tau = (robot.inverse_dynamics(q, qd, qdd).unwrap() - &tau).amax() / tau.amax();
         assert!(
-            m < TOLERANCE && g < TOLERANCE && k < TOLERANCE,
-            "q = {q:?}: relative errors M {m:e}, g {g:e}, dg/dq {k:e}"
+            [m, g, k, tau].iter().all(|&e| e < TOLERANCE),
+            "q = {q:?}: relative errors M {m:e}, g {g:e}, dg/dq {k:e}, inverse dynamics {tau:e}"
         );
-        worst_m = worst_m.max(m);
-        worst_g = worst_g.max(g);
-        worst_k = worst_k.max(k);
+        for (w, e) in worst.iter_mut().zip([m, g, k, tau]) {
+            *w = w.max(e);
+        }
     }
+    let [m, g, k, tau] = worst;
     eprintln!(
-        "against Pinocchio {} at {POSES} poses: largest relative errors M {worst_m:.1e}, g {worst_g:.1e}, dg/dq {worst_k:.1e}",
+        "against Pinocchio {} at {POSES} poses: largest relative errors M {m:.1e}, g {g:.1e}, dg/dq {k:.1e}, inverse dynamics {tau:.1e}",
         reference["pinocchio"].as_str().unwrap_or("?")
     );
 }

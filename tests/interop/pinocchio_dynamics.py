@@ -2,13 +2,15 @@
 
     python pinocchio_dynamics.py ROBOT.urdf POSES.json
 
-POSES.json: a JSON list of poses, each a list of joint positions in the chain's order
-[rad or m] (one per degree of freedom: a continuous joint's angle, not Pinocchio's
-(cos, sin) pair). Prints one JSON object: {"pinocchio": version, "joints": [names in Pinocchio's
-order], "poses": [{"M": rows, "g": vector, "dg_dq": rows}, ...]} with
+POSES.json: a JSON list of states {"q": positions, "qd": rates, "qdd": accelerations}, each
+a list in the chain's order [rad, rad/s, rad/s^2 or m, m/s, m/s^2] (one per degree of
+freedom: a continuous joint's angle, not Pinocchio's (cos, sin) pair). Prints one JSON
+object: {"pinocchio": version, "joints": [names in Pinocchio's order], "gravity": [x, y, z],
+"poses": [{"M": rows, "g": vector, "dg_dq": rows, "tau": vector}, ...]} with
   M      pinocchio.crba (it fills the upper triangle only: symmetrised here) [kg m^2 ...],
   g      pinocchio.computeGeneralizedGravity [N m or N],
-  dg_dq  pinocchio.computeGeneralizedGravityDerivatives [N m/rad ...].
+  dg_dq  pinocchio.computeGeneralizedGravityDerivatives [N m/rad ...],
+  tau    pinocchio.rnea(q, qd, qdd) [N m or N].
 
 The model is pinocchio.buildModelFromUrdf without a root joint: the root link is fixed to
 the universe, fixed joints become frames whose bodies' inertias are appended to the
@@ -33,8 +35,10 @@ def main():
         sys.exit("pinocchio_dynamics: not a chain of one-degree-of-freedom joints")
     neutral = pin.neutral(model)
     out = []
-    for angles in poses:
-        angles = np.asarray(angles, dtype=float)
+    for state in poses:
+        angles = np.asarray(state["q"], dtype=float)
+        qd = np.asarray(state["qd"], dtype=float)
+        qdd = np.asarray(state["qdd"], dtype=float)
         if angles.shape != (model.nv,):
             sys.exit(f"pinocchio_dynamics: pose of {angles.shape} entries, the model has {model.nv} joints")
         # Pinocchio's configuration: a continuous joint is (cos q, sin q) (nq = 2, nv = 1);
@@ -44,7 +48,8 @@ def main():
         m = np.triu(m) + np.triu(m, 1).T
         g = pin.computeGeneralizedGravity(model, data, q).copy()
         dg = pin.computeGeneralizedGravityDerivatives(model, data, q).copy()
-        out.append({"M": m.tolist(), "g": g.tolist(), "dg_dq": dg.tolist()})
+        tau = pin.rnea(model, data, q, qd, qdd).copy()
+        out.append({"M": m.tolist(), "g": g.tolist(), "dg_dq": dg.tolist(), "tau": tau.tolist()})
     json.dump(
         {
             "pinocchio": pin.__version__,

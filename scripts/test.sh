@@ -21,6 +21,9 @@ rustc --version
 step "python peers for the interop tests (python-can, msgpack) and loopback multicast"
 scripts/pyenv-interop.sh
 
+step "pinocchio for the rigid-body dynamics check (tests/robot_pinocchio.rs)"
+scripts/pyenv-pinocchio.sh
+
 step "mosquitto for the MQTT test (tests/daemon_mqtt.rs)"
 if command -v mosquitto >/dev/null 2>&1 || [ -x /usr/sbin/mosquitto ]; then
     echo "mosquitto: present"

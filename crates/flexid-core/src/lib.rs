@@ -25,6 +25,8 @@
 //! * [`plant`]: the physics plant of the simulated drive: the chain with unmodelled
 //!   effects (friction, backlash, delay, current loop, ...), a fine-step simulator, and
 //!   the plant file's types and parser.
+//! * [`robot`]: rigid-body dynamics of a serial robot arm (URDF import, M(q), g(q), the
+//!   analytic gravity stiffness dg/dq, inverse dynamics), for the multi-axis model.
 //!
 //! Conventions: SI units throughout (kg m^2, N m/rad, N m s/rad, rad, rad/s, Hz, s). The
 //! plant is the motor mobility: motor torque -> motor angular velocity. Body 1 is the motor.
@@ -39,6 +41,7 @@ pub mod manipulator;
 pub mod model;
 pub mod plant;
 pub mod recording;
+pub mod robot;
 pub mod sim;
 
 pub use num_complex::Complex64;

@@ -31,6 +31,10 @@ pub struct PoseMeasurement {
     pub g: Vec<DMatrix<Complex64>>,
     /// The variance `E|G^ - G|^2` of each element per line, where measured.
     pub var: Option<Vec<DMatrix<f64>>>,
+    /// The variance of the symmetrised estimate's elements (eq. (14)) per line, where
+    /// measured with the two elements' correlation; else the symmetric cost takes the two
+    /// elements' errors as independent.
+    pub var_sym: Option<Vec<DMatrix<f64>>>,
 }
 
 /// How the lines of an element are weighted (`alpha`).
@@ -221,11 +225,13 @@ fn element(
     let g = &meas.g[k];
     let var = meas.var.as_ref().map(|v| &v[k]);
     if spec.symmetric && n != m {
-        // eq. (14); the two estimates' errors taken as independent
-        (
-            (g[(n, m)] + g[(m, n)]) * 0.5,
-            var.map(|v| (v[(n, m)] + v[(m, n)]) * 0.25),
-        )
+        // eq. (14); without a measured variance of it, the two estimates' errors taken as
+        // independent
+        let var_sym = match &meas.var_sym {
+            Some(v) => Some(v[k][(n, m)]),
+            None => var.map(|v| (v[(n, m)] + v[(m, n)]) * 0.25),
+        };
+        ((g[(n, m)] + g[(m, n)]) * 0.5, var_sym)
     } else {
         (g[(n, m)], var.map(|v| v[(n, m)]))
     }
@@ -284,6 +290,7 @@ mod tests {
                 .map(|v| DMatrix::from_row_slice(2, 2, &v.map(|x| Complex64::new(x, 0.0))))
                 .collect(),
             var: None,
+            var_sym: None,
         }
     }
 

@@ -20,6 +20,7 @@
 use super::cost::{db_of, Cost, DB_PER_NEPER};
 use super::frf::FrfPlan;
 use super::pose::RigidPose;
+use super::sampled::SampledPose;
 use super::springs::Flexibilities;
 use super::ManipulatorError;
 use crate::lsq::{self, Damping, LmOptions, LmWorkspace, NormalEquations};
@@ -27,6 +28,24 @@ use nalgebra::DMatrix;
 use num_complex::Complex64;
 use rand::{Rng, SeedableRng};
 use std::sync::atomic::{AtomicUsize, Ordering};
+
+/// Which model FRF is compared with the measurement.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub enum FrfForm {
+    /// The continuous-time model ([`FrfPlan`]).
+    #[default]
+    Continuous,
+    /// The sampled plant's ([`SampledPose`]: torque held, speed backward-differenced at
+    /// `fs_hz`), what an estimate from a drive's samples converges to
+    /// (`../shared/design/multiaxis.md`, fact 3). The fit evaluates the continuous model
+    /// times the ratio sampled / continuous taken at the start of each reweighting round
+    /// (smooth in frequency: both share the poles, `z = e^(s T)`); at the fit's end the
+    /// ratio is the end's, so the model compared is the sampled one.
+    Sampled {
+        /// The drive's sample rate [Hz].
+        fs_hz: f64,
+    },
+}
 
 /// Choices of [`identify`].
 #[derive(Debug, Clone, PartialEq)]
@@ -44,6 +63,8 @@ pub struct IdentifyOptions {
     pub evals_per_round: usize,
     /// Reweighting rounds per start at most.
     pub rounds: usize,
+    /// The model FRF compared.
+    pub form: FrfForm,
 }
 
 impl Default for IdentifyOptions {
@@ -55,6 +76,7 @@ impl Default for IdentifyOptions {
             threads: 0,
             evals_per_round: 40,
             rounds: 60,
+            form: FrfForm::Continuous,
         }
     }
 }
@@ -99,16 +121,23 @@ pub struct Identification {
 /// report, not a tuned constant: the best parameters do not depend on it.
 pub const GOOD_COST_RATIO: f64 = 1.1;
 
-/// The model FRF matrices of `theta` at every pose and line of `cost`.
+/// The model FRF matrices of `theta` in `form` at every pose and line of `cost`.
 pub fn model_frf(
     poses: &[RigidPose],
     cost: &Cost,
     theta: &Flexibilities,
+    form: FrfForm,
 ) -> Result<Vec<Vec<DMatrix<Complex64>>>, ManipulatorError> {
     poses
         .iter()
         .zip(&cost.f_hz)
-        .map(|(pose, f)| Ok(FrfPlan::new(pose).frf(f, theta)?.g))
+        .map(|(pose, f)| match form {
+            FrfForm::Continuous => Ok(FrfPlan::new(pose).frf(f, theta)?.g),
+            FrfForm::Sampled { fs_hz } => {
+                let s = SampledPose::new(pose, theta, fs_hz)?;
+                f.iter().map(|&f| s.frf(f)).collect()
+            }
+        })
         .collect()
 }
 
@@ -141,7 +170,7 @@ pub fn identify(
         .collect();
     let spread = parameter_spread(&outcomes, &good);
     let best_theta = outcomes[best].end.clone();
-    let cost_per_pose = cost.per_pose(&model_frf(poses, cost, &best_theta)?);
+    let cost_per_pose = cost.per_pose(&model_frf(poses, cost, &best_theta, opts.form)?);
     Ok(Identification {
         best: best_theta,
         cost: best_cost,
@@ -310,6 +339,10 @@ struct Use {
 /// buffers of the FRF and its derivatives.
 struct Fit<'a> {
     cost: &'a Cost,
+    poses: &'a [RigidPose],
+    /// Per term and line: the sampled form's ratio to the continuous one [dB], zero for
+    /// the continuous form.
+    offset_db: Vec<Vec<f64>>,
     plans: Vec<FrfPlan>,
     /// Per pose: each line any term uses, with its uses.
     lines: Vec<Vec<(usize, Vec<Use>)>>,
@@ -324,7 +357,7 @@ struct Fit<'a> {
 }
 
 impl<'a> Fit<'a> {
-    fn new(poses: &[RigidPose], cost: &'a Cost) -> Self {
+    fn new(poses: &'a [RigidPose], cost: &'a Cost) -> Self {
         let plans: Vec<FrfPlan> = poses.iter().map(FrfPlan::new).collect();
         let mut lines: Vec<Vec<(usize, Vec<Use>)>> = cost
             .f_hz
@@ -343,6 +376,12 @@ impl<'a> Fit<'a> {
         let axes = cost.axes;
         Fit {
             cost,
+            poses,
+            offset_db: cost
+                .terms
+                .iter()
+                .map(|t| vec![0.0; t.lines.len()])
+                .collect(),
             plans,
             lines,
             theta: Flexibilities {
@@ -378,6 +417,9 @@ impl<'a> Fit<'a> {
             failure: Some(why),
         };
         self.set_theta(&theta);
+        if self.refresh_form(opts.form).is_none() {
+            return failed("the sampled model is singular at the start".into(), 1);
+        }
         let Some(mut v) = self.errors() else {
             return failed("the model is singular at the start".into(), 1);
         };
@@ -400,6 +442,17 @@ impl<'a> Fit<'a> {
             self.set_theta(&ws.theta);
             let Some(v_new) = self.errors() else { break };
             evaluations += 1;
+            // the sampled form's ratio at the new parameters, for the next round (and V
+            // in the sampled form)
+            let v_new = match opts.form {
+                FrfForm::Continuous => v_new,
+                FrfForm::Sampled { .. } => {
+                    match self.refresh_form(opts.form).and_then(|_| self.errors()) {
+                        Some(v) => v,
+                        None => break,
+                    }
+                }
+            };
             // the majoriser guarantees no increase; a fall below the round-off of V ends it
             if v_new >= v * (1.0 - 1e-9) {
                 if v_new < v {
@@ -431,8 +484,9 @@ impl<'a> Fit<'a> {
                     .ok()?;
                 for u in uses {
                     let t = &self.cost.terms[u.term];
-                    self.e[u.term][u.j] =
-                        db_of(self.g[t.n * self.cost.axes + t.m]) - t.measured_db[u.j];
+                    self.e[u.term][u.j] = db_of(self.g[t.n * self.cost.axes + t.m])
+                        + self.offset_db[u.term][u.j]
+                        - t.measured_db[u.j];
                 }
             }
         }
@@ -451,6 +505,30 @@ impl<'a> Fit<'a> {
             .map(|(t, e)| self.cost.term_value(t, e.iter().copied()))
             .sum();
         v.is_finite().then_some(v)
+    }
+
+    /// The sampled form's ratio to the continuous model at the current `theta`, per term
+    /// and line, into `offset_db`; `None` when either model is singular on a line.
+    fn refresh_form(&mut self, form: FrfForm) -> Option<()> {
+        let FrfForm::Sampled { fs_hz } = form else {
+            return Some(());
+        };
+        for (pose, lines) in self.lines.iter().enumerate() {
+            let sampled = SampledPose::new(&self.poses[pose], &self.theta, fs_hz).ok()?;
+            for (k, uses) in lines {
+                let f = self.cost.f_hz[pose][*k];
+                self.plans[pose]
+                    .frf_into(f, &self.theta, &mut self.g)
+                    .ok()?;
+                let gs = sampled.frf(f).ok()?;
+                for u in uses {
+                    let t = &self.cost.terms[u.term];
+                    self.offset_db[u.term][u.j] =
+                        db_of(gs[(t.n, t.m)]) - db_of(self.g[t.n * self.cost.axes + t.m]);
+                }
+            }
+        }
+        Some(())
     }
 
     /// The majorisation's weights at the errors of the last [`Fit::errors`].
@@ -523,7 +601,7 @@ impl NormalEquations for Fit<'_> {
                     let el = t.n * self.cost.axes + t.m;
                     let g = self.g[el];
                     let sw = self.w[u.term][u.j].sqrt();
-                    let r = sw * (db_of(g) - t.measured_db[u.j]);
+                    let r = sw * (db_of(g) + self.offset_db[u.term][u.j] - t.measured_db[u.j]);
                     let ginv = g.inv();
                     for (p, x) in self.row.iter_mut().enumerate() {
                         // d(20 log10 |G|) = DB_PER_NEPER Re(dG / G)

@@ -9,6 +9,8 @@
 //!   vector `theta` of the paper's eq. (5).
 //! * [`pose`]: the rigid part of the model linearised at one pose (the arm's mass matrix
 //!   and gravity stiffness over its coordinates, the motors).
+//! * [`flex_file`], [`flexible`]: the flexibility file beside a robot's URDF and the
+//!   flexible robot built from both (bearing joints inserted), linearised at any pose.
 //! * [`clu`]: a small complex LU in place (the FRF's solve per line, no allocation).
 //! * [`cost`]: the paper's identification cost (eqs. (12), (15)): per-element bands,
 //!   weights (the paper's, or the measured variance's), the `p`-norm, the symmetric
@@ -29,8 +31,10 @@
 pub mod clu;
 pub mod cost;
 pub mod flex_file;
+pub mod flexible;
 pub mod frf;
 pub mod identify;
+pub mod measure;
 pub mod pose;
 pub mod sampled;
 pub mod springs;
@@ -38,8 +42,10 @@ pub mod springs;
 mod tests_support;
 
 pub use cost::{Cost, CostSpec, PoseMeasurement, Weighting};
+pub use flex_file::FlexFile;
+pub use flexible::FlexibleRobot;
 pub use frf::{FrfPlan, ModelFrf};
-pub use identify::{identify, Identification, IdentifyOptions, StartOutcome};
+pub use identify::{identify, FrfForm, Identification, IdentifyOptions, StartOutcome};
 pub use pose::{Motor, RigidPose};
 pub use sampled::{PositionLoop, SampledPose};
 pub use springs::{Flexibilities, Spring, SpringKind};
@@ -80,6 +86,10 @@ pub enum ManipulatorError {
         index: usize,
         coords: usize,
     },
+    #[error("the robot's {what}: {detail}")]
+    Robot { what: String, detail: String },
+    #[error("the simulated measurement: {detail}")]
+    Measurement { detail: String },
     #[error("none of the {starts} starts converged (the first: {first_failure})")]
     NoStartConverged {
         starts: usize,

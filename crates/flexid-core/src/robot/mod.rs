@@ -70,6 +70,8 @@ pub enum JointKind {
 pub struct Link {
     /// Name (the URDF child link's name on import).
     pub name: String,
+    /// The joint's name (the URDF joint's on import; the bearing joints' own).
+    pub joint: String,
     /// Pose of this joint's frame in the parent link's frame at q = 0 [m, rad]; the parent
     /// of the first link is the base.
     pub origin: Isometry3<f64>,
@@ -157,8 +159,10 @@ impl Link {
     /// A massless revolute joint with the identity origin, about `axis` (unit in the joint
     /// frame): the bearing joints of the flexible model, for [`SerialRobot::insert_joint`].
     pub fn massless_revolute(name: impl Into<String>, axis: Unit<Vector3<f64>>) -> Self {
+        let name = name.into();
         Link {
-            name: name.into(),
+            joint: name.clone(),
+            name,
             origin: Isometry3::identity(),
             axis,
             kind: JointKind::Revolute,

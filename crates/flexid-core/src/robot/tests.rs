@@ -66,6 +66,7 @@ fn random_robot(rng: &mut StdRng, n: usize) -> SerialRobot {
     let links = (0..n)
         .map(|i| Link {
             name: format!("l{i}"),
+            joint: String::new(),
             origin: Isometry3::from_parts(
                 Translation3::from(Vector3::from_fn(|_, _| rng.random_range(-0.5..0.5))),
                 random_rotation(rng),
@@ -325,6 +326,7 @@ fn a_pendulum_matches_its_closed_form() {
         base: None,
         links: vec![Link {
             name: "pendulum".into(),
+            joint: String::new(),
             origin: Isometry3::translation(0.0, 0.0, 1.0),
             axis: Vector3::y_axis(),
             kind: JointKind::Revolute,
@@ -356,6 +358,7 @@ fn a_planar_two_link_arm_matches_its_closed_form() {
     let g0 = 9.81;
     let link = |origin: Isometry3<f64>, m: f64, lc: f64, izz: f64| Link {
         name: String::new(),
+        joint: String::new(),
         origin,
         axis: Vector3::z_axis(),
         kind: JointKind::Revolute,
@@ -510,9 +513,10 @@ fn the_reference_arm_is_a_plausible_six_axis_robot() {
     let axes: Vec<Vector3<f64>> = robot.links.iter().map(|l| l.axis.into_inner()).collect();
     let (x, y, z) = (Vector3::x(), Vector3::y(), Vector3::z());
     assert_eq!(axes, vec![z, y, y, x, y, x]);
-    // the flange (1.5 kg) merged into the wrist rotor (5 kg); the base 180 kg
-    assert!((robot.moving_mass_kg() - 271.5).abs() < 1e-12);
-    assert!((robot.links[5].inertial.mass_kg - 6.5).abs() < 1e-12);
+    // the flange (1.5 kg) and the payload (10 kg) merged into the wrist rotor (5 kg);
+    // the base 180 kg
+    assert!((robot.moving_mass_kg() - 281.5).abs() < 1e-12);
+    assert!((robot.links[5].inertial.mass_kg - 16.5).abs() < 1e-12);
     assert!((robot.base.unwrap().mass_kg - 180.0).abs() < 1e-12);
     for (name, inertial) in robot
         .links

@@ -150,6 +150,7 @@ fn assemble(
             })?;
         links.push(Link {
             name: robot.links[child].name.clone(),
+            joint: joint.name.clone(),
             origin,
             axis,
             kind,

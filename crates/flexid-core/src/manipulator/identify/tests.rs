@@ -22,6 +22,7 @@ fn two_poses() -> (Vec<RigidPose>, Flexibilities, Vec<PoseMeasurement>) {
             f_hz: f.clone(),
             g: FrfPlan::new(p).frf(&f, &theta).unwrap().g,
             var: None,
+            var_sym: None,
         })
         .collect();
     (poses, theta, meas)
@@ -100,8 +101,17 @@ fn the_reweighted_fit_ends_at_a_stationary_point_of_v() {
             ..IdentifyOptions::default()
         };
         let id = identify(&poses, &cost, &truth, &opts).unwrap();
-        let v =
-            |t: &[f64]| cost.value(&model_frf(&poses, &cost, &Flexibilities::from_log(t)).unwrap());
+        let v = |t: &[f64]| {
+            cost.value(
+                &model_frf(
+                    &poses,
+                    &cost,
+                    &Flexibilities::from_log(t),
+                    FrfForm::Continuous,
+                )
+                .unwrap(),
+            )
+        };
         let at = id.best.to_log();
         let v0 = v(&at);
         assert!((v0 - id.cost).abs() < 1e-9 * v0);

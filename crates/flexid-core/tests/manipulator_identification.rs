@@ -1,0 +1,215 @@
+//! Issue 17: the 18-DOF flexible model of the reference robot identified from simulated
+//! multi-axis measurements at two poses (orthogonal multisines under the position loop,
+//! encoder noise), validated on twelve others (the paper's split), as a pure-core test
+//! (the same through the simulated robot drive is the vdrive's test).
+
+use flexid_core::manipulator::flex_file::PoseRole;
+use flexid_core::manipulator::identify::{model_frf, FrfForm};
+use flexid_core::manipulator::measure::{simulate, MeasureOptions};
+use flexid_core::manipulator::{
+    identify, Cost, CostSpec, FlexFile, Flexibilities, FlexibleRobot, IdentifyOptions,
+    PoseMeasurement, RigidPose, Weighting,
+};
+use flexid_core::robot::SerialRobot;
+
+const URDF: &str = include_str!("../../../robots/flexid-arm6.urdf");
+const FLEX: &str = include_str!("../../../robots/flexid-arm6.flex.toml");
+
+fn reference_robot() -> FlexibleRobot {
+    let rigid = SerialRobot::from_urdf_str(URDF).unwrap();
+    let file = FlexFile::parse(FLEX, "flexid-arm6.flex.toml").unwrap();
+    FlexibleRobot::new(rigid, &file).unwrap()
+}
+
+/// The robot's true springs: the file's nominal values (the identification's start) off
+/// by fixed factors between 0.7 and 1.4.
+fn truth(r: &FlexibleRobot) -> Flexibilities {
+    let f = [
+        1.3, 0.8, 1.15, 0.7, 1.4, 0.9, 1.2, 0.75, 1.1, 0.85, 1.35, 0.95,
+    ];
+    Flexibilities::new(
+        r.nominal
+            .stiffness_nm_per_rad
+            .iter()
+            .zip(f)
+            .map(|(k, f)| k * f)
+            .collect(),
+        r.nominal
+            .damping_nms_per_rad
+            .iter()
+            .zip(f.iter().rev())
+            .map(|(c, f)| c * f)
+            .collect(),
+    )
+    .unwrap()
+}
+
+fn options(seed: u64) -> MeasureOptions {
+    MeasureOptions {
+        fs_hz: 1000.0,
+        period_samples: 1000,
+        band_hz: [2.0, 300.0],
+        rms_nm: vec![0.6, 0.6, 0.4, 0.1, 0.1, 0.05],
+        blocks: 1,
+        transient_periods: 2,
+        periods: 6,
+        loop_bandwidth_hz: 2.0,
+        encoder_noise_rad: 5e-6,
+        seed,
+    }
+}
+
+fn measured(
+    r: &FlexibleRobot,
+    theta: &Flexibilities,
+    role: PoseRole,
+) -> Vec<(String, RigidPose, PoseMeasurement)> {
+    r.poses_of(role)
+        .into_iter()
+        .enumerate()
+        .map(|(i, (name, q))| {
+            let pose = r.pose(&q).unwrap();
+            let frf = simulate(&pose, theta, &options(100 + i as u64)).unwrap();
+            (name, pose, PoseMeasurement::from_mimo(&frf))
+        })
+        .collect()
+}
+
+#[test]
+fn the_18_dof_model_is_identified_from_two_poses_and_holds_on_twelve() {
+    let r = reference_robot();
+    let truth = truth(&r);
+    let id = measured(&r, &truth, PoseRole::Identification);
+    let poses: Vec<_> = id.iter().map(|(_, p, _)| p.clone()).collect();
+    let meas: Vec<_> = id.iter().map(|(_, _, m)| m.clone()).collect();
+    let cost = Cost::new(
+        &meas,
+        CostSpec {
+            weighting: Weighting::InverseVariance,
+            ..CostSpec::default()
+        },
+    )
+    .unwrap();
+    let t0 = std::time::Instant::now();
+    let result = identify(
+        &poses,
+        &cost,
+        &r.nominal,
+        &IdentifyOptions {
+            starts: std::env::var("STARTS").map_or(4, |s| s.parse().unwrap()),
+            form: FrfForm::Sampled { fs_hz: 1000.0 },
+            ..IdentifyOptions::default()
+        },
+    )
+    .unwrap();
+    eprintln!(
+        "identification: {:.1} s, costs {:?}",
+        t0.elapsed().as_secs_f64(),
+        result
+            .starts
+            .iter()
+            .map(|s| (s.cost, s.evaluations))
+            .collect::<Vec<_>>()
+    );
+    let names = r.parameter_names();
+    let found = result
+        .best
+        .stiffness_nm_per_rad
+        .iter()
+        .chain(&result.best.damping_nms_per_rad);
+    let true_values = truth
+        .stiffness_nm_per_rad
+        .iter()
+        .chain(&truth.damping_nms_per_rad);
+    for (j, (k, t)) in found.zip(true_values).enumerate() {
+        eprintln!(
+            "{}: {k:.4e} for {t:.4e} ({:+.2} %)",
+            names[j],
+            100.0 * (k / t - 1.0)
+        );
+    }
+    // every stiffness within 5 % (the issue's bound; measured: 0.2 % at most)
+    for (j, (k, t)) in result
+        .best
+        .stiffness_nm_per_rad
+        .iter()
+        .zip(&truth.stiffness_nm_per_rad)
+        .enumerate()
+    {
+        assert!(
+            (k / t - 1.0).abs() < 0.05,
+            "{}: {k:.4e} for {t:.4e}",
+            names[j]
+        );
+    }
+    // the search reached the cost's minimum: at or below the truth's cost on these data
+    let form = FrfForm::Sampled { fs_hz: 1000.0 };
+    let v_truth: f64 = cost
+        .per_pose(&model_frf(&poses, &cost, &truth, form).unwrap())
+        .iter()
+        .sum();
+    eprintln!(
+        "V per pose {:?}, V at the truth {v_truth:.4}",
+        result.cost_per_pose
+    );
+    assert!(
+        result.cost <= v_truth * (1.0 + 1e-6),
+        "{} > {v_truth}",
+        result.cost
+    );
+
+    // validation on the twelve other poses: the paper's V per pose (variance weights: with
+    // the paper's uniform ones, the elements a pose's symmetry makes zero are noise and
+    // dominate V) against the true springs' V, the noise floor; and the complex error by
+    // the measurement's own uncertainty (mean |G^ - G|^2 / var over lines and elements:
+    // one where the model is right); the file's nominal springs for contrast
+    let val = measured(&r, &truth, PoseRole::Validation);
+    assert_eq!(val.len(), 12);
+    for (name, pose, m) in &val {
+        let v_cost = Cost::new(
+            std::slice::from_ref(m),
+            CostSpec {
+                weighting: Weighting::InverseVariance,
+                ..CostSpec::default()
+            },
+        )
+        .unwrap();
+        let z2 = |theta: &Flexibilities| {
+            let g = model_frf(std::slice::from_ref(pose), &v_cost, theta, form).unwrap();
+            let var = m.var.as_ref().unwrap();
+            let (mut s, mut n) = (0.0, 0usize);
+            for (k, gk) in g[0].iter().enumerate() {
+                for (e, x) in gk.iter().enumerate() {
+                    s += (m.g[k][e] - x).norm_sqr() / var[k][e];
+                    n += 1;
+                }
+            }
+            (s / n as f64, v_cost.value(&g))
+        };
+        let (fit_z2, fit_v) = z2(&result.best);
+        let (nominal_z2, nominal_v) = z2(&r.nominal);
+        let (truth_z2, truth_v) = z2(&truth);
+        eprintln!(
+            "{name}: V {fit_v:.3} dB (true springs {truth_v:.3}, nominal {nominal_v:.2}); \
+             mean z2 {fit_z2:.2} (true springs {truth_z2:.2}, nominal {nominal_z2:.3e})"
+        );
+        // the measurement is unbiased: the true springs' model lies within its noise
+        assert!((0.8..1.25).contains(&truth_z2), "{name}: {truth_z2}");
+        // the identified model's magnitudes match as well as the true springs' (measured:
+        // within 2 %), the nominal's not (10 to 40 times the cost)
+        assert!(
+            fit_v <= 1.1 * truth_v,
+            "{name}: V {fit_v} against {truth_v}"
+        );
+        assert!(
+            nominal_v > 5.0 * fit_v,
+            "{name}: the nominal model fits as well ({nominal_v})"
+        );
+        // with the phase (not in the paper's cost): the dampings the two poses leave
+        // unidentified show, yet 1e5 times closer than the nominal
+        assert!(
+            nominal_z2 > 1e4 * fit_z2,
+            "{name}: z2 {fit_z2} against {nominal_z2}"
+        );
+    }
+}

@@ -96,7 +96,7 @@ fn the_18_dof_model_is_identified_from_two_poses_and_holds_on_twelve() {
         &cost,
         &r.nominal,
         &IdentifyOptions {
-            starts: std::env::var("STARTS").map_or(4, |s| s.parse().unwrap()),
+            starts: 4,
             form: FrfForm::Sampled { fs_hz: 1000.0 },
             ..IdentifyOptions::default()
         },
@@ -121,14 +121,42 @@ fn the_18_dof_model_is_identified_from_two_poses_and_holds_on_twelve() {
         .stiffness_nm_per_rad
         .iter()
         .chain(&truth.damping_nms_per_rad);
+    let std_ln = result.std_ln.clone().expect("variance weights");
     for (j, (k, t)) in found.zip(true_values).enumerate() {
         eprintln!(
-            "{}: {k:.4e} for {t:.4e} ({:+.2} %)",
+            "{}: {k:.4e} for {t:.4e} ({:+.3} %, uncertainty {:.3} %{})",
             names[j],
-            100.0 * (k / t - 1.0)
+            100.0 * (k / t - 1.0),
+            100.0 * std_ln[j],
+            if result.identifiable(j) == Some(false) {
+                ", not identifiable"
+            } else {
+                ""
+            }
         );
     }
-    // every stiffness within 5 % (the bound; measured: 0.2 % at most)
+    // every parameter identified by the two poses (its uncertainty from the measured
+    // variance under a factor of two); the dampings within 10 % (measured: 6.2 % at most;
+    // the design notes' independent fit: about 10 %). The errors are 1-6 of those
+    // uncertainties: the weights come from the measured magnitudes, which noise moves
+    // (docs/multi-axis.md)
+    for (j, name) in names.iter().enumerate() {
+        assert_eq!(result.identifiable(j), Some(true), "{name}");
+    }
+    for (j, (c, t)) in result
+        .best
+        .damping_nms_per_rad
+        .iter()
+        .zip(&truth.damping_nms_per_rad)
+        .enumerate()
+    {
+        assert!(
+            (c / t - 1.0).abs() < 0.10,
+            "{}: {c:.4e} for {t:.4e}",
+            names[12 + j]
+        );
+    }
+    // every stiffness within 5 % (the bound; measured: 0.03 % at most)
     for (j, (k, t)) in result
         .best
         .stiffness_nm_per_rad
@@ -196,7 +224,7 @@ fn the_18_dof_model_is_identified_from_two_poses_and_holds_on_twelve() {
         // the measurement is unbiased: the true springs' model lies within its noise
         assert!((0.8..1.25).contains(&truth_z2), "{name}: {truth_z2}");
         // the identified model's magnitudes match as well as the true springs' (measured:
-        // within 2 %), the nominal's not (10 to 40 times the cost)
+        // within 0.4 %), the nominal's not (20 to 200 times the cost)
         assert!(
             fit_v <= 1.1 * truth_v,
             "{name}: V {fit_v} against {truth_v}"
@@ -205,8 +233,9 @@ fn the_18_dof_model_is_identified_from_two_poses_and_holds_on_twelve() {
             nominal_v > 5.0 * fit_v,
             "{name}: the nominal model fits as well ({nominal_v})"
         );
-        // with the phase (not in the paper's cost): the dampings the two poses leave
-        // unidentified show, yet 1e5 times closer than the nominal
+        // with the phase (not in the paper's cost): within the measurement's own
+        // uncertainty (measured: mean z2 1.01-1.10, one pose 1.66), the nominal 1e6 off
+        assert!(fit_z2 < 2.0, "{name}: mean z2 {fit_z2}");
         assert!(
             nominal_z2 > 1e4 * fit_z2,
             "{name}: z2 {fit_z2} against {nominal_z2}"

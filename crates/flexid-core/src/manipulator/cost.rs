@@ -22,6 +22,15 @@ use num_complex::Complex64;
 /// `20 / ln 10`: dB per neper.
 pub const DB_PER_NEPER: f64 = 8.685_889_638_065_035;
 
+/// Under variance weights, a line enters only where its measured power exceeds what noise
+/// alone reaches in 99 % of cases: with a circular complex Gaussian error of variance
+/// `var`, `|noise|^2 / var` is exponential with mean one, `P(> x) = e^-x`, so the bound is
+/// `ln 100 = 4.6`. Below it the element is not measured on that line (the weak
+/// off-diagonal elements, `../shared/design/multiaxis.md` fact 2; the elements a pose's
+/// symmetry makes zero): its log-magnitude is the noise floor's, which a fit would chase
+/// (measured: stiffness errors 0.2 %, a damping driven to zero, on the reference robot).
+pub const NOISE_ONLY_SNR: f64 = 4.605_170_185_988_092;
+
 /// One pose's measured FRF matrix.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PoseMeasurement {
@@ -264,6 +273,9 @@ fn term(meas: &PoseMeasurement, spec: &CostSpec, pose: usize, n: usize, m: usize
         let alpha = match spec.weighting {
             Weighting::Uniform => 1.0,
             Weighting::InverseVariance => match var {
+                // a line whose magnitude the noise alone reaches is not a measured
+                // magnitude: its dB value is biased and its first-order variance wrong
+                Some(v) if v > 0.0 && v.is_finite() && mag2 < NOISE_ONLY_SNR * v => continue,
                 Some(v) if v > 0.0 && v.is_finite() => {
                     1.0 / (DB_PER_NEPER * DB_PER_NEPER * v / (2.0 * mag2))
                 }
@@ -366,6 +378,26 @@ mod tests {
         // sigma of the magnitude of a unit element with var 1e-4: 8.69 * 0.00707 dB
         let sigma_db = (1.0 / t.alpha[0]).sqrt();
         assert!((sigma_db - DB_PER_NEPER * (0.5e-4f64).sqrt()).abs() < 1e-12);
+        // a line the noise alone reaches (|G|^2 / var below ln 100) is left out: the
+        // symmetrised element (1,0), 0.1 against a variance (1e-2 + 1e-2) / 4 (power ratio
+        // 2), on the second line only
+        let mut weak = measurement(&[[1.0, 0.1, 0.1, 2.0], [1.0, 0.1, 0.1, 2.0]]);
+        let mut second = DMatrix::from_element(2, 2, 1e-4);
+        second[(1, 0)] = 1e-2;
+        second[(0, 1)] = 1e-2;
+        weak.var = Some(vec![DMatrix::from_element(2, 2, 1e-4), second]);
+        let c = Cost::new(
+            &[weak],
+            CostSpec {
+                weighting: Weighting::InverseVariance,
+                ..CostSpec::default()
+            },
+        )
+        .unwrap();
+        let off = c.terms.iter().find(|t| (t.n, t.m) == (1, 0)).unwrap();
+        assert_eq!(off.lines, [0]);
+        let diag = c.terms.iter().find(|t| (t.n, t.m) == (1, 1)).unwrap();
+        assert_eq!(diag.lines, [0, 1]);
         // without variances the inverse-variance cost has no line to use
         let none = Cost::new(
             &[measurement(&[[1.0, 0.1, 0.1, 2.0]])],

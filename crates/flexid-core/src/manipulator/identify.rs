@@ -17,7 +17,7 @@
 //! The parameters are the logarithms of the stiffnesses and dampings (all positive, all of
 //! order one in scale).
 
-use super::cost::{db_of, Cost, DB_PER_NEPER};
+use super::cost::{db_of, Cost, Weighting, DB_PER_NEPER};
 use super::frf::FrfPlan;
 use super::pose::RigidPose;
 use super::sampled::SampledPose;
@@ -112,6 +112,28 @@ pub struct Identification {
     /// Per parameter (`k` then `c`, in the pose's pair order): the relative spread
     /// `max / min - 1` of its final value over the good starts [-].
     pub spread: Vec<f64>,
+    /// Per parameter: the standard uncertainty of its logarithm from the measurement's
+    /// variance (the Fisher information of the variance-weighted log-magnitudes,
+    /// `(J^T J)^-1`; about the relative uncertainty where small) [-]; `None` without
+    /// variance weights ([`super::Weighting::InverseVariance`]). Infinite where the data
+    /// carry no information on it.
+    pub std_ln: Option<Vec<f64>>,
+}
+
+/// A parameter is reported "not identifiable" when the measurement does not fix it within
+/// a factor of two at one standard uncertainty (`std_ln > ln 2`): its value then says
+/// nothing a reader could use. A reporting definition, not a tuned constant (the fit does
+/// not depend on it).
+pub const IDENTIFIABLE_STD_LN: f64 = std::f64::consts::LN_2;
+
+impl Identification {
+    /// Whether parameter `j` is identified (its `std_ln` at most [`IDENTIFIABLE_STD_LN`]);
+    /// `None` without variance weights.
+    pub fn identifiable(&self, j: usize) -> Option<bool> {
+        self.std_ln
+            .as_ref()
+            .map(|s| s[j].is_finite() && s[j] <= IDENTIFIABLE_STD_LN)
+    }
 }
 
 /// Final costs within this factor of the best count as the same minimum. The cost is an
@@ -171,6 +193,10 @@ pub fn identify(
     let spread = parameter_spread(&outcomes, &good);
     let best_theta = outcomes[best].end.clone();
     let cost_per_pose = cost.per_pose(&model_frf(poses, cost, &best_theta, opts.form)?);
+    let std_ln = match cost.spec.weighting {
+        Weighting::InverseVariance => Some(log_uncertainty(poses, cost, &best_theta, opts.form)),
+        Weighting::Uniform => None,
+    };
     Ok(Identification {
         best: best_theta,
         cost: best_cost,
@@ -178,7 +204,56 @@ pub fn identify(
         starts: outcomes,
         good,
         spread,
+        std_ln,
     })
+}
+
+/// The standard uncertainty of each parameter's logarithm at `theta`: the residuals
+/// `E / sigma_dB` of every line of every term (with variance weights `alpha = 1/sigma^2`),
+/// their Jacobian `J` in the logarithms, `sqrt(diag((J^T J)^-1))` through the symmetric
+/// eigendecomposition (a direction with no information gives infinity, not a NaN).
+fn log_uncertainty(
+    poses: &[RigidPose],
+    cost: &Cost,
+    theta: &Flexibilities,
+    form: FrfForm,
+) -> Vec<f64> {
+    let mut fit = Fit::new(poses, cost);
+    let log = theta.to_log();
+    let np = log.len();
+    fit.set_theta(&log);
+    if fit.refresh_form(form).is_none() {
+        return vec![f64::INFINITY; np];
+    }
+    for (w, t) in fit.w.iter_mut().zip(&cost.terms) {
+        w.copy_from_slice(&t.alpha);
+    }
+    let (mut jtj, mut jtr) = (vec![0.0; np * np], vec![0.0; np]);
+    if !fit.normal_after_cost(&mut (), &mut jtj, &mut jtr) {
+        return vec![f64::INFINITY; np];
+    }
+    let eig = DMatrix::from_row_slice(np, np, &jtj).symmetric_eigen();
+    let largest = eig.eigenvalues.amax();
+    (0..np)
+        .map(|j| {
+            let var: f64 = (0..np)
+                .map(|i| {
+                    let l = eig.eigenvalues[i];
+                    // a direction below round-off of the largest carries no information
+                    if l <= largest * 1e-14 {
+                        if eig.eigenvectors[(j, i)].abs() > 1e-6 {
+                            f64::INFINITY
+                        } else {
+                            0.0
+                        }
+                    } else {
+                        eig.eigenvectors[(j, i)].powi(2) / l
+                    }
+                })
+                .sum();
+            var.sqrt()
+        })
+        .collect()
 }
 
 /// The poses match the measurement and `nominal` has one pair per spring of each pose.

@@ -15,6 +15,7 @@ mod excite;
 mod fit_progress;
 pub mod plant;
 mod results;
+mod robot;
 pub mod sweep;
 mod sweep_args;
 #[cfg(test)]
@@ -55,6 +56,10 @@ pub enum Command {
     /// Diagnose the gap between the identified chain and the measurement: where, which
     /// unmodelled effect, and how far it shrinks with it (one recording per amplitude).
     Diagnose(diagnose::DiagnoseArgs),
+    /// Identify the gear and bearing flexibilities of a multi-axis robot (URDF plus
+    /// flexibility file) from orthogonal-multisine FRF matrices at several poses; the robot
+    /// is simulated. Prints the parameters, the cost per pose; writes the Bode matrix.
+    Robot(robot::RobotArgs),
 }
 
 #[derive(Debug, Args)]
@@ -232,5 +237,6 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
             code: e.exit_code(),
         }),
         Command::Diagnose(a) => diagnose::diagnose(&a),
+        Command::Robot(a) => robot::robot(&a),
     }
 }

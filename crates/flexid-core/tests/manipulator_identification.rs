@@ -44,21 +44,6 @@ fn truth(r: &FlexibleRobot) -> Flexibilities {
     .unwrap()
 }
 
-fn options(seed: u64) -> MeasureOptions {
-    MeasureOptions {
-        fs_hz: 1000.0,
-        period_samples: 1000,
-        band_hz: [2.0, 300.0],
-        rms_nm: vec![0.6, 0.6, 0.4, 0.1, 0.1, 0.05],
-        blocks: 1,
-        transient_periods: 2,
-        periods: 6,
-        loop_bandwidth_hz: 2.0,
-        encoder_noise_rad: 5e-6,
-        seed,
-    }
-}
-
 fn measured(
     r: &FlexibleRobot,
     theta: &Flexibilities,
@@ -69,7 +54,12 @@ fn measured(
         .enumerate()
         .map(|(i, (name, q))| {
             let pose = r.pose(&q).unwrap();
-            let frf = simulate(&pose, theta, &options(100 + i as u64)).unwrap();
+            let frf = simulate(
+                &pose,
+                theta,
+                &MeasureOptions::for_axes(6, 1000.0, 100 + i as u64),
+            )
+            .unwrap();
             (name, pose, PoseMeasurement::from_mimo(&frf))
         })
         .collect()

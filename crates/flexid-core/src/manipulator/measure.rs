@@ -40,6 +40,30 @@ pub struct MeasureOptions {
     pub seed: u64,
 }
 
+impl MeasureOptions {
+    /// The measurement the reference arm is identified with (`robots/flexid-arm6`): 1 Hz
+    /// lines over 2 Hz to 0.3 `fs` (at most 300 Hz), one block, two settling and six
+    /// averaged periods per experiment, a 2 Hz position loop, a 20-bit encoder's noise
+    /// (5e-6 rad), multisines of 0.6, 0.6, 0.4 N m RMS on the main axes and 0.1, 0.1,
+    /// 0.05 N m on the wrist (0.05 N m on any further axis).
+    pub fn for_axes(axes: usize, fs_hz: f64, seed: u64) -> Self {
+        let mut rms = vec![0.6, 0.6, 0.4, 0.1, 0.1, 0.05];
+        rms.resize(axes, 0.05);
+        MeasureOptions {
+            fs_hz,
+            period_samples: fs_hz.round() as usize,
+            band_hz: [2.0, (0.3 * fs_hz).min(300.0)],
+            rms_nm: rms,
+            blocks: 1,
+            transient_periods: 2,
+            periods: 6,
+            loop_bandwidth_hz: 2.0,
+            encoder_noise_rad: 5e-6,
+            seed,
+        }
+    }
+}
+
 /// The pose `pose` with springs `theta` measured as `opts` says: the estimate with its
 /// variance.
 pub fn simulate(

@@ -26,4 +26,5 @@ for level in 0.1 0.5; do
 done
 "$flexid" diagnose "$work/rec-0.1.csv" "$work/rec-0.5.csv" --masses 3 \
     --json "$work/diagnosis.json" --svg docs/diagnose-gap.svg | tee "$work/diagnosis.txt"
-echo "wrote docs/bode-demo.svg and docs/diagnose-gap.svg (reports in $work)"
+"$flexid" robot --starts 8 --svg docs/robot-bode-matrix.svg | tee "$work/robot.txt"
+echo "wrote docs/bode-demo.svg, docs/diagnose-gap.svg and docs/robot-bode-matrix.svg (reports in $work)"

@@ -177,12 +177,19 @@ class Problem:
 
 
 def fit_start(prob, x0):
-    """One start: BFGS on V with its analytic gradient; (final V, ln theta, nfev, nit)."""
-    r = minimize(
-        prob.value_and_grad, np.asarray(x0, dtype=float), jac=True, method="BFGS",
-        options={"gtol": BFGS_GTOL, "maxiter": BFGS_MAXITER},
-    )
-    return float(r.fun), r.x, int(r.nfev), int(r.nit)
+    """One start: BFGS on V with its analytic gradient; (final V, ln theta, nfev, nit,
+    converged). A trial step of the line search far out (exp overflows) gives a V that
+    is not finite, which the line search rejects; numpy's warnings about it are silenced.
+    """
+    with np.errstate(all="ignore"):
+        r = minimize(
+            prob.value_and_grad, np.asarray(x0, dtype=float), jac=True, method="BFGS",
+            options={"gtol": BFGS_GTOL, "maxiter": BFGS_MAXITER},
+        )
+    v = float(r.fun)
+    # a start whose line search ended on a non-finite V has failed (flexid's failed starts
+    # are reported the same way)
+    return (v if np.isfinite(v) else np.inf), r.x, int(r.nfev), int(r.nit), bool(r.success)
 
 
 def fit_all(prob, starts):
@@ -340,7 +347,7 @@ def main():
             print(f"  all {workers} cores, round {i + 1}/{reps}: flexid {fmt_t(tn_rs[-1])}, scipy {fmt_t(tn_py[-1])}, ratio {tn_py[-1] / tn_rs[-1]:.1f}x")
     side.close()
     # the pool's results are the serial ones (same starts, same arithmetic)
-    pool_same = all(abs(a[0] - b[0]) <= 1e-12 * abs(a[0]) for a, b in zip(py, pyn))
+    pool_same = all(a[0] == b[0] or abs(a[0] - b[0]) <= 1e-12 * abs(a[0]) for a, b in zip(py, pyn))
 
     # ---- results
     rust_costs = np.array([np.inf if s["cost"] is None else s["cost"] for s in rr["starts"]])
@@ -354,6 +361,9 @@ def main():
     err_py = stiffness_errors(py_theta, truth)
     py_nfev = sum(r[2] for r in py)
     py_nit = sum(r[3] for r in py)
+    py_unconverged = sum(not r[4] for r in py)
+    py_failed = int(np.sum(~np.isfinite(py_costs)))
+    rust_failed = int(np.sum(~np.isfinite(rust_costs)))
     rust_evals = sum(s["evaluations"] for s in rr["starts"])
     consistent = all(abs(r["cost"] - rust_best) <= 1e-12 * rust_best for r in rs_runs)
     # the two bests compared: stiffnesses (identified), dampings (some left free by the data)
@@ -415,8 +425,9 @@ def main():
         f"| wall time, all {workers} cores | {fmt_t(float(np.median(tn_rs)))} | {fmt_t(float(np.median(tn_py)))} | **{rn[0]:.1f}x** [{rn[1]:.1f}, {rn[2]:.1f}] |",
         f"| best final V [dB] | {rust_best:.9f} | {py_best:.9f} | {verdict} |",
         f"| starts at the best minimum (V within 10 % of {overall:.6f}) | {good_rs}/{nstarts} | {good_py}/{nstarts} | |",
-        f"| max stiffness error of the best against the truth | {100 * np.max(np.abs(err_rs)):.3f} % | {100 * np.max(np.abs(err_py)):.3f} % | the two bests' stiffnesses differ by {100 * d_k:.2e} % at most, dampings by {100 * d_c:.2g} % |",
-        f"| model evaluations, all starts | {rust_evals} (V passes and Jacobian passes) | {py_nfev} (V + gradient), {py_nit} iterations | |",
+        f"| max stiffness error of the best against the truth | {100 * np.max(np.abs(err_rs)):.3f} % | {100 * np.max(np.abs(err_py)):.3f} % | the two bests' stiffnesses differ by {100 * d_k:.2e} % at most, dampings by {100 * d_c:.3g} % (some dampings are left free by these data) |",
+        f"| model evaluations, all starts | {rust_evals} (V passes and Jacobian passes) | {py_nfev} (V + gradient), {py_nit} iterations; {py_unconverged} starts ended without BFGS's convergence (precision loss in the line search) | |",
+        f"| failed starts (final V not finite: for BFGS a line search whose trial step overflowed exp(ln theta)) | {rust_failed} | {py_failed} | |",
         "",
         f"Target (issue 17): at least {TARGET:g}x on one core at equal or lower final V: "
         f"**{'met' if r1[0] >= TARGET and lower else 'not met'}** (one core {r1[0]:.1f}x, all cores {rn[0]:.1f}x).",
@@ -447,7 +458,7 @@ def main():
         )
     text = "\n".join(lines) + "\n"
     print()
-    print("\n".join(lines[:28]))
+    print("\n".join(lines[: lines.index("Stiffness errors of the two bests against the truth:")]))
     if report:
         Path(report).parent.mkdir(parents=True, exist_ok=True)
         Path(report).write_text(text)

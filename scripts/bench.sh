@@ -11,6 +11,16 @@
 #    sides computed the same numbers, then times the two sides interleaved (Rust, Python,
 #    Rust, Python, ...), prints the median [min, max] ratio per computation and writes
 #    target/bench/compare.md. FLEXID_BENCH_ONLY=compare stops after this stage.
+# 3. runs the issue-17 identification benchmark: benches/manipulator_identify.py starts
+#    benches/manipulator_identify.rs (--serve), which simulates the reference robot's two
+#    identification poses and writes the cost's problem to target/bench/manipulator; the
+#    Python side checks that its V equals flexid's, then times flexid's multi-start
+#    identify against scipy's BFGS on the same cost from the same starts, interleaved, on
+#    one core (both pinned to the same core by the script itself) and on all cores (every
+#    thread / a process pool); target/bench/manipulator_identify.md. Full: 60 starts,
+#    3 rounds, inverse-variance weights, then the paper's uniform weights (1 round,
+#    appended); --quick: 8 starts, 1 round, inverse-variance only.
+#    FLEXID_BENCH_ONLY=manipulator runs this stage alone.
 # Both processes are pinned to the same core, BLAS/OpenMP to one thread. Ratios are
 # reported, not asserted; the script fails when the two sides' numbers disagree.
 # 4. runs the cycle-timing benchmark (benches/cycle_timing.rs): wake-up lateness of the
@@ -76,6 +86,34 @@ fi
 export OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 MKL_NUM_THREADS=1 \
     VECLIB_MAXIMUM_THREADS=1 NUMEXPR_NUM_THREADS=1
 
+# 3. The issue-17 identification against scipy (not pinned by taskset: the Python side
+#    pins both processes itself for the one-core timings and frees them for all cores).
+manipulator_stage() {
+    local mexe mout margs=()
+    mexe=$(cargo build --release --bench manipulator_identify --message-format=json 2>/dev/null |
+        sed -n 's/.*"executable":"\([^"]*manipulator_identify[^"]*\)".*/\1/p' | tail -n 1)
+    if [ -z "$mexe" ] || [ ! -x "$mexe" ]; then
+        cargo build --release --bench manipulator_identify # shows the error
+        echo "bench: could not find the manipulator_identify executable" >&2
+        exit 1
+    fi
+    mout="$root/target/bench/manipulator"
+    rm -rf "$mout"
+    local nice=()
+    [ "$(id -u)" = 0 ] && nice=(nice -n -15)
+    "${nice[@]}" "$venv/bin/python" benches/manipulator_identify.py --rust "$mexe" \
+        --out "$mout" "${mode[@]}" --report "$root/target/bench/manipulator_identify.md"
+    if [ ${#mode[@]} -eq 0 ]; then
+        "${nice[@]}" "$venv/bin/python" benches/manipulator_identify.py --rust "$mexe" \
+            --out "$mout" --weighting uniform --reps 1 --report "$mout/uniform.md"
+        { echo; echo "---"; echo; cat "$mout/uniform.md"; } >>"$root/target/bench/manipulator_identify.md"
+    fi
+}
+if [ "${FLEXID_BENCH_ONLY:-}" = manipulator ]; then
+    manipulator_stage
+    exit 0
+fi
+
 data="$root/target/bench/data"
 rm -rf "$data"
 # The Python side starts the Rust side (--serve, on the same pinned core) and alternates
@@ -86,6 +124,7 @@ rm -rf "$data"
 if [ "${FLEXID_BENCH_ONLY:-}" = compare ]; then
     exit 0
 fi
+manipulator_stage
 
 # The cycle-timing benchmark (not pinned by taskset: it pins its cycle threads itself).
 cexe=$(cargo build --release --bench cycle_timing --message-format=json 2>/dev/null |

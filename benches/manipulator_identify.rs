@@ -33,67 +33,32 @@ use flexid_core::manipulator::flex_file::PoseRole;
 use flexid_core::manipulator::identify::{model_frf, start_design};
 use flexid_core::manipulator::measure::{simulate, MeasureOptions};
 use flexid_core::manipulator::{
-    identify, Cost, CostSpec, FlexFile, Flexibilities, FlexibleRobot, FrfForm, Identification,
+    identify, Cost, CostSpec, Flexibilities, FlexibleRobot, FrfForm, Identification,
     IdentifyOptions, PoseMeasurement, RigidPose, Weighting,
 };
-use flexid_core::robot::SerialRobot;
 use serde_json::{json, Value};
 use std::hint::black_box;
 use std::io::Write;
 use std::path::PathBuf;
 use std::time::Instant;
 
-const URDF: &str = include_str!("../robots/flexid-arm6.urdf");
-const FLEX: &str = include_str!("../robots/flexid-arm6.flex.toml");
 /// The paper's number of starts.
 const STARTS: usize = 60;
 /// Starts with `--quick` (CI's smoke run).
 const QUICK_STARTS: usize = 8;
 
 fn reference_robot() -> FlexibleRobot {
-    let rigid = SerialRobot::from_urdf_str(URDF).expect("the reference URDF");
-    let file = FlexFile::parse(FLEX, "flexid-arm6.flex.toml").expect("the flexibility file");
-    FlexibleRobot::new(rigid, &file).expect("the flexible robot")
+    flexid_core::manipulator::reference::robot()
 }
 
-/// The robot's true springs: the file's nominal values off by fixed factors between 0.7
-/// and 1.4 (the integration test's `truth`).
+/// The robot's true springs: the integration test's (`reference::perturbed_truth`).
 fn truth(r: &FlexibleRobot) -> Flexibilities {
-    let f = [
-        1.3, 0.8, 1.15, 0.7, 1.4, 0.9, 1.2, 0.75, 1.1, 0.85, 1.35, 0.95,
-    ];
-    Flexibilities::new(
-        r.nominal
-            .stiffness_nm_per_rad
-            .iter()
-            .zip(f)
-            .map(|(k, f)| k * f)
-            .collect(),
-        r.nominal
-            .damping_nms_per_rad
-            .iter()
-            .zip(f.iter().rev())
-            .map(|(c, f)| c * f)
-            .collect(),
-    )
-    .expect("valid true springs")
+    flexid_core::manipulator::reference::perturbed_truth(r)
 }
 
-/// The integration test's measurement (`options(seed)`): 1 kHz drive, 1 Hz lines over
-/// 2-300 Hz, 2 + 6 periods, 2 Hz position loop, 5 urad encoder noise.
+/// The integration test's measurement of pose `seed - 100`.
 fn options(seed: u64) -> MeasureOptions {
-    MeasureOptions {
-        fs_hz: 1000.0,
-        period_samples: 1000,
-        band_hz: [2.0, 300.0],
-        rms_nm: vec![0.6, 0.6, 0.4, 0.1, 0.1, 0.05],
-        blocks: 1,
-        transient_periods: 2,
-        periods: 6,
-        loop_bandwidth_hz: 2.0,
-        encoder_noise_rad: 5e-6,
-        seed,
-    }
+    MeasureOptions::for_axes(6, 1000.0, seed)
 }
 
 /// A matrix as a list of rows.

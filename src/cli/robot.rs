@@ -22,10 +22,6 @@ use flexid_core::robot::SerialRobot;
 use std::path::PathBuf;
 use std::time::Instant;
 
-/// The reference robot's files, embedded.
-const REFERENCE_URDF: &str = include_str!("../../robots/flexid-arm6.urdf");
-const REFERENCE_FLEX: &str = include_str!("../../robots/flexid-arm6.flex.toml");
-
 #[derive(Debug, Args)]
 pub struct RobotArgs {
     /// The robot's flexibility file (TOML; its `urdf` is read relative to it). Default: the
@@ -225,7 +221,7 @@ pub fn robot(a: &RobotArgs) -> Result<(), CliError> {
 fn load(a: &RobotArgs) -> Result<FlexibleRobot, CliError> {
     let (flex_text, origin, urdf_text) = match &a.robot {
         None => (
-            REFERENCE_FLEX.to_string(),
+            flexid_core::manipulator::reference::FLEX.to_string(),
             "robots/flexid-arm6.flex.toml (embedded)".to_string(),
             None,
         ),
@@ -238,7 +234,7 @@ fn load(a: &RobotArgs) -> Result<FlexibleRobot, CliError> {
     };
     let file = FlexFile::parse(&flex_text, &origin).map_err(|e| CliError::input(e.to_string()))?;
     let urdf = match urdf_text {
-        None => REFERENCE_URDF.to_string(),
+        None => flexid_core::manipulator::reference::URDF.to_string(),
         Some(p) => {
             let path = p
                 .parent()

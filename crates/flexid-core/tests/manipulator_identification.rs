@@ -7,41 +7,16 @@ use flexid_core::manipulator::flex_file::PoseRole;
 use flexid_core::manipulator::identify::{model_frf, FrfForm};
 use flexid_core::manipulator::measure::{simulate, MeasureOptions};
 use flexid_core::manipulator::{
-    identify, Cost, CostSpec, FlexFile, Flexibilities, FlexibleRobot, IdentifyOptions,
-    PoseMeasurement, RigidPose, Weighting,
+    identify, Cost, CostSpec, Flexibilities, FlexibleRobot, IdentifyOptions, PoseMeasurement,
+    RigidPose, Weighting,
 };
-use flexid_core::robot::SerialRobot;
-
-const URDF: &str = include_str!("../../../robots/flexid-arm6.urdf");
-const FLEX: &str = include_str!("../../../robots/flexid-arm6.flex.toml");
 
 fn reference_robot() -> FlexibleRobot {
-    let rigid = SerialRobot::from_urdf_str(URDF).unwrap();
-    let file = FlexFile::parse(FLEX, "flexid-arm6.flex.toml").unwrap();
-    FlexibleRobot::new(rigid, &file).unwrap()
+    flexid_core::manipulator::reference::robot()
 }
 
-/// The robot's true springs: the file's nominal values (the identification's start) off
-/// by fixed factors between 0.7 and 1.4.
 fn truth(r: &FlexibleRobot) -> Flexibilities {
-    let f = [
-        1.3, 0.8, 1.15, 0.7, 1.4, 0.9, 1.2, 0.75, 1.1, 0.85, 1.35, 0.95,
-    ];
-    Flexibilities::new(
-        r.nominal
-            .stiffness_nm_per_rad
-            .iter()
-            .zip(f)
-            .map(|(k, f)| k * f)
-            .collect(),
-        r.nominal
-            .damping_nms_per_rad
-            .iter()
-            .zip(f.iter().rev())
-            .map(|(c, f)| c * f)
-            .collect(),
-    )
-    .unwrap()
+    flexid_core::manipulator::reference::perturbed_truth(r)
 }
 
 fn measured(

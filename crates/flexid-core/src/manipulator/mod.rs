@@ -36,6 +36,7 @@ pub mod frf;
 pub mod identify;
 pub mod measure;
 pub mod pose;
+pub mod reference;
 pub mod sampled;
 pub mod springs;
 #[cfg(test)]

@@ -1,12 +1,9 @@
 use super::*;
 
-const URDF: &str = include_str!("../../../../../robots/flexid-arm6.urdf");
-const FLEX: &str = include_str!("../../../../../robots/flexid-arm6.flex.toml");
+use crate::manipulator::reference::{FLEX, URDF};
 
-pub fn reference_robot() -> FlexibleRobot {
-    let rigid = SerialRobot::from_urdf_str(URDF).unwrap();
-    let file = FlexFile::parse(FLEX, "flexid-arm6.flex.toml").unwrap();
-    FlexibleRobot::new(rigid, &file).unwrap()
+fn reference_robot() -> FlexibleRobot {
+    crate::manipulator::reference::robot()
 }
 
 /// Undamped natural frequencies [Hz] of a pose (the generalised eigenvalues of `K`, `M`;

@@ -158,3 +158,12 @@ mod tests {
         assert_eq!(exc.len(), 12);
     }
 }
+
+/// The band `[lowest, highest]` [Hz] of the excited `lines` (DFT bins, increasing) at the
+/// line spacing `df_hz`; `None` without lines.
+pub fn band_of(lines: &[usize], df_hz: f64) -> Option<[f64; 2]> {
+    match (lines.first(), lines.last()) {
+        (Some(&a), Some(&b)) => Some([a as f64 * df_hz, b as f64 * df_hz]),
+        _ => None,
+    }
+}

@@ -309,11 +309,7 @@ impl OrthogonalMultisine {
         periods: usize,
         transient_periods: usize,
     ) -> ExcitationInfo {
-        let df = self.line_spacing_hz();
-        let band_hz = match (self.excited_lines.first(), self.excited_lines.last()) {
-            (Some(&a), Some(&b)) => Some([a as f64 * df, b as f64 * df]),
-            _ => None,
-        };
+        let band_hz = super::lines::band_of(&self.excited_lines, self.line_spacing_hz());
         ExcitationInfo {
             kind: ExcitationKind::Multisine,
             period_samples: self.period_samples(),

@@ -91,6 +91,15 @@ pub(crate) fn odd_random_lines<R: Rng>(
     (excited, detection)
 }
 
+/// The band `[lowest, highest]` [Hz] of the excited `lines` (DFT bins, increasing) at the
+/// line spacing `df_hz`; `None` without lines.
+pub fn band_of(lines: &[usize], df_hz: f64) -> Option<[f64; 2]> {
+    match (lines.first(), lines.last()) {
+        (Some(&a), Some(&b)) => Some([a as f64 * df_hz, b as f64 * df_hz]),
+        _ => None,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -156,14 +165,5 @@ mod tests {
         // Odd lines 5..=39: 18 lines, 6 full groups of 3.
         assert_eq!(det.len(), 6);
         assert_eq!(exc.len(), 12);
-    }
-}
-
-/// The band `[lowest, highest]` [Hz] of the excited `lines` (DFT bins, increasing) at the
-/// line spacing `df_hz`; `None` without lines.
-pub fn band_of(lines: &[usize], df_hz: f64) -> Option<[f64; 2]> {
-    match (lines.first(), lines.last()) {
-        (Some(&a), Some(&b)) => Some([a as f64 * df_hz, b as f64 * df_hz]),
-        _ => None,
     }
 }

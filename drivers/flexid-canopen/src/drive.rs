@@ -33,6 +33,26 @@ pub struct Feedback {
     pub counters: Counters,
 }
 
+impl Feedback {
+    /// A placeholder before any cycle (all zero, not fresh, SYNC time `at`): fills the
+    /// slots a [`MultiAxisDrive::cycle`] writes.
+    pub fn none(at: Instant) -> Self {
+        Feedback {
+            cycle: 0,
+            sync_time: at,
+            statusword: 0,
+            state: None,
+            position_rad: 0.0,
+            velocity_rad_s: 0.0,
+            torque_nm: 0.0,
+            torque_setpoint_nm: 0.0,
+            saturated: false,
+            fresh: false,
+            counters: Counters::default(),
+        }
+    }
+}
+
 /// Counters of the cyclic exchange since enable.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct Counters {
@@ -74,4 +94,35 @@ pub trait CyclicDrive {
 
     /// Counters since enable.
     fn counters(&self) -> Counters;
+}
+
+/// Several drives in cyclic synchronous torque mode on one bus, enabled, whose set-points
+/// act in the same cycle (one SYNC for all): the multi-axis measurement. Fieldbus-
+/// independent.
+pub trait MultiAxisDrive {
+    /// The error type of the implementation.
+    type Error: std::error::Error + Send + Sync + 'static;
+
+    /// Number of axes `N`.
+    fn axes(&self) -> usize;
+
+    /// One cycle: sends every axis's torque set-point (`torques_nm`, N m, one per axis) and
+    /// one synchronisation, then waits, at most until `deadline`, for every axis's
+    /// feedback of this cycle, written to `out` (one per axis). Pace calls at the cycle
+    /// period.
+    fn cycle(
+        &mut self,
+        torques_nm: &[f64],
+        deadline: Instant,
+        out: &mut [Feedback],
+    ) -> Result<(), Self::Error>;
+
+    /// The configured cycle period.
+    fn cycle_period(&self) -> Duration;
+
+    /// Axis `axis`'s rated torque [N m].
+    fn rated_torque_nm(&self, axis: usize) -> f64;
+
+    /// Axis `axis`'s node address on its bus.
+    fn node(&self, axis: usize) -> u8;
 }

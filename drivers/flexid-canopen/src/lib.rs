@@ -32,9 +32,9 @@ pub mod profile;
 pub mod scaling;
 pub mod sdo;
 
-pub use drive::{Counters, CyclicDrive, Feedback};
+pub use drive::{Counters, CyclicDrive, Feedback, MultiAxisDrive};
 pub use master::{
-    bring_up, Configured, Drive, Enabled, ErrorFramePolicy, MasterConfig, MasterError,
+    bring_up, Configured, Drive, DriveGroup, Enabled, ErrorFramePolicy, MasterConfig, MasterError,
     PreOperational,
 };
 pub use profile::{Identity, Profile, ProfileError, ProfileSet};

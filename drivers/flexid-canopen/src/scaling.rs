@@ -15,7 +15,7 @@ pub struct Scaling {
 }
 
 /// A torque set-point converted to per-mille of rated torque.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct TorqueSetpoint {
     /// Per-mille of rated torque, as written to 0x6071.
     pub permille: i16,

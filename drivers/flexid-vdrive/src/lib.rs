@@ -11,6 +11,10 @@
 //! * [`sync_watch`]: SYNC-loss supervision.
 //! * [`drive`]: the sans-I/O core [`VirtualDrive`] (`on_frame`, `on_sync`, `tick`, time
 //!   injected).
+//! * [`node`]: [`BusNode`], what a runner serves: one drive, or a [`DriveSet`] of drives
+//!   on one bus.
+//! * [`robot`]: a whole robot, one drive per axis, sharing one coupled multi-axis plant
+//!   (the linearised flexible manipulator of `flexid_core::manipulator`).
 //! * [`runner`]: the blocking [`Runner`] over any `flexid_can::CanBus`.
 //! * [`config`]: the plant file's `[drive]` section and [`DriveConfig`].
 
@@ -19,8 +23,10 @@ pub mod config;
 pub mod drive;
 pub mod heartbeat;
 pub mod limits;
+pub mod node;
 pub mod od;
 pub mod physics;
+pub mod robot;
 pub mod runner;
 pub mod slave;
 pub mod sync_watch;
@@ -29,6 +35,7 @@ pub use cia402::State;
 pub use config::{ClockMode, ConfigError, DriveConfig, DrivePlant, DriveSection};
 pub use drive::{DriveError, DriveStats, Outputs, VirtualDrive};
 pub use limits::FaultKind;
+pub use node::{BusNode, DriveSet};
 pub use physics::{AxisSample, LinearChain, Physics, PhysicsError};
 pub use runner::{RunError, Runner};
 

@@ -1,12 +1,14 @@
-//! The blocking runner: a [`VirtualDrive`] on any [`CanBus`], on the calling thread.
+//! The blocking runner: a drive ([`crate::VirtualDrive`]) or a set of drives
+//! ([`crate::DriveSet`]) on any [`CanBus`], on the calling thread.
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use flexid_can::{BusError, CanBus};
 
-use crate::drive::{Outputs, VirtualDrive};
-use crate::physics::Physics;
+use flexid_can::CanFrame;
+
+use crate::node::BusNode;
 
 /// Longest wait in `recv_timeout`, so that a stop request is seen promptly.
 pub const POLL: Duration = Duration::from_millis(20);
@@ -26,17 +28,17 @@ pub enum RunError {
     },
 }
 
-/// A drive on a bus.
-pub struct Runner<B: CanBus, P: Physics> {
+/// A drive (or a set of drives) on a bus.
+pub struct Runner<B: CanBus, N: BusNode> {
     bus: B,
-    drive: VirtualDrive<P>,
+    drive: N,
     epoch: Instant,
     send_errors: u64,
 }
 
-impl<B: CanBus, P: Physics> Runner<B, P> {
+impl<B: CanBus, N: BusNode> Runner<B, N> {
     /// The drive on `bus`; time 0 is now.
-    pub fn new(bus: B, drive: VirtualDrive<P>) -> Self {
+    pub fn new(bus: B, drive: N) -> Self {
         Self {
             bus,
             drive,
@@ -46,7 +48,7 @@ impl<B: CanBus, P: Physics> Runner<B, P> {
     }
 
     /// The drive.
-    pub fn drive(&self) -> &VirtualDrive<P> {
+    pub fn drive(&self) -> &N {
         &self.drive
     }
 
@@ -69,8 +71,9 @@ impl<B: CanBus, P: Physics> Runner<B, P> {
 
     /// Boots the drive: sends the boot-up frame.
     pub fn power_on(&mut self) {
-        let out = self.drive.power_on(self.epoch.elapsed());
-        self.send(&out);
+        let now = self.epoch.elapsed();
+        let (bus, errors) = (&mut self.bus, &mut self.send_errors);
+        self.drive.power_on(now, &mut |f| send(bus, errors, f));
     }
 
     /// Serves the bus until `stop` is set (after [`Runner::power_on`]).
@@ -85,8 +88,8 @@ impl<B: CanBus, P: Physics> Runner<B, P> {
                 }
             }
             let now = self.epoch.elapsed();
-            let out = self.drive.tick(now);
-            self.send(&out);
+            let (bus, errors) = (&mut self.bus, &mut self.send_errors);
+            self.drive.tick(now, &mut |f| send(bus, errors, f));
             let wait = self
                 .drive
                 .next_deadline()
@@ -101,8 +104,9 @@ impl<B: CanBus, P: Physics> Runner<B, P> {
         match self.bus.recv_timeout(wait) {
             Ok(Some(r)) => {
                 let at = r.timestamp.saturating_duration_since(self.epoch);
-                let out = self.drive.on_frame(&r.frame, at);
-                self.send(&out);
+                let (bus, errors) = (&mut self.bus, &mut self.send_errors);
+                self.drive
+                    .on_frame(&r.frame, at, &mut |f| send(bus, errors, f));
                 Ok(true)
             }
             Ok(None) => Ok(false),
@@ -116,13 +120,12 @@ impl<B: CanBus, P: Physics> Runner<B, P> {
             }),
         }
     }
+}
 
-    fn send(&mut self, out: &Outputs) {
-        for f in out.iter() {
-            if let Err(e) = self.bus.send(f) {
-                self.send_errors += 1;
-                tracing::warn!("send {f}: {e}");
-            }
-        }
+/// Sends `f` on `bus`; a failure is counted in `errors` and logged.
+fn send<B: CanBus>(bus: &mut B, errors: &mut u64, f: &CanFrame) {
+    if let Err(e) = bus.send(f) {
+        *errors += 1;
+        tracing::warn!("send {f}: {e}");
     }
 }

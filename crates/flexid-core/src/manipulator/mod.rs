@@ -43,7 +43,7 @@ pub mod springs;
 mod tests_support;
 
 pub use cost::{Cost, CostSpec, PoseMeasurement, Weighting};
-pub use flex_file::FlexFile;
+pub use flex_file::{FlexFile, PoseRole};
 pub use flexible::FlexibleRobot;
 pub use frf::{FrfPlan, ModelFrf};
 pub use identify::{identify, FrfForm, Identification, IdentifyOptions, StartOutcome};

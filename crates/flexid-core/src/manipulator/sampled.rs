@@ -94,6 +94,12 @@ impl SampledPose {
         self.axes
     }
 
+    /// Axis `axis`'s motor: the state index of its angle (its speed is `states() / 2`
+    /// further) and its gear ratio (motor angle = ratio x that coordinate).
+    pub fn motor(&self, axis: usize) -> (usize, f64) {
+        self.motors[axis]
+    }
+
     /// One sample: `x <- Ad x + Bd u` with the motor torques `u` [N m, motor side].
     pub fn step(&mut self, x: &mut [f64], u: &[f64]) {
         let (ns, axes) = (self.ns, self.axes);

@@ -22,7 +22,7 @@ const NMT_STATE_STOPPED: u8 = 0x04;
 
 /// How strict one exchange is.
 #[derive(Clone, Copy, PartialEq, Eq)]
-enum Mode {
+pub(super) enum Mode {
     /// Enabled cycle: EMCYs and NMT state changes are errors.
     Strict,
     /// State-machine walks: EMCYs are remembered (the walk resets faults).
@@ -40,9 +40,27 @@ impl<B: CanBus> Link<B> {
         deadline: Instant,
         mode: Mode,
     ) -> Result<(Instant, bool), MasterError> {
-        let node = self.node();
+        let sync = self.exchange_begin(controlword, torque_permille, mode, true)?;
+        let sync_time = self.now();
+        // frames that arrived before this instant answer an earlier SYNC (see exchange)
+        self.exchange_sync_sent(sync_time);
+        self.send(&sync, "sending SYNC")?;
+        let complete = self.exchange_collect(deadline, mode)?;
+        Ok((sync_time, complete))
+    }
+
+    /// The first phase of a cycle: the master heartbeat if due (and `heartbeat`), the
+    /// drain of what the previous cycle left, RPDO1 sent. Returns the SYNC frame to send
+    /// (by this link or, in a group, by the first drive's).
+    pub(super) fn exchange_begin(
+        &mut self,
+        controlword: Controlword,
+        torque_permille: i16,
+        mode: Mode,
+        heartbeat: bool,
+    ) -> Result<flexid_can::CanFrame, MasterError> {
         let now = self.now();
-        if self.next_heartbeat.is_none_or(|t| now >= t) {
+        if heartbeat && self.next_heartbeat.is_none_or(|t| now >= t) {
             let f = flexid_can::CanFrame::standard(cob::heartbeat(self.cfg.master_node), &[0x05])
                 .expect("1 byte");
             self.send(&f, "sending the master heartbeat")?;
@@ -60,12 +78,24 @@ impl<B: CanBus> Link<B> {
         }
         let [rpdo, sync] = self.exchange.begin(controlword.0, torque_permille);
         self.send(&rpdo, "sending RPDO1")?;
-        let sync_time = self.now();
-        // frames that arrived before this instant answer an earlier SYNC (see exchange)
-        self.exchange.sync_sent(sync_time);
-        self.send(&sync, "sending SYNC")?;
-        self.last_sync = Some(sync_time);
         self.last_cw = controlword;
+        Ok(sync)
+    }
+
+    /// The second phase: the SYNC goes out at `sync_time` (read just before sending it).
+    pub(super) fn exchange_sync_sent(&mut self, sync_time: Instant) {
+        self.exchange.sync_sent(sync_time);
+        self.last_sync = Some(sync_time);
+    }
+
+    /// The last phase: this cycle's TPDOs until `deadline`; whether all came. Too many
+    /// incomplete cycles in a row end the cycle in [`Mode::Strict`].
+    pub(super) fn exchange_collect(
+        &mut self,
+        deadline: Instant,
+        mode: Mode,
+    ) -> Result<bool, MasterError> {
+        let node = self.node();
         while !self.exchange.complete() {
             let left = deadline.saturating_duration_since(self.now());
             if left.is_zero() {
@@ -85,7 +115,58 @@ impl<B: CanBus> Link<B> {
         if mode == Mode::Strict && consecutive >= self.cfg.missed_cycles_limit() {
             return Err(MasterError::TpdoLost { node, consecutive });
         }
-        Ok((sync_time, complete))
+        Ok(complete)
+    }
+
+    /// The set-point of `torque_nm` [N m] (finite, or an error), counted when clamped.
+    pub(super) fn setpoint(
+        &mut self,
+        torque_nm: f64,
+    ) -> Result<crate::scaling::TorqueSetpoint, MasterError> {
+        if !torque_nm.is_finite() {
+            return Err(MasterError::InvalidSetpoint {
+                node: self.node(),
+                torque_nm,
+            });
+        }
+        let sp = self.scaling.torque_permille(torque_nm);
+        if sp.saturated {
+            self.exchange.counters.saturated += 1;
+        }
+        Ok(sp)
+    }
+
+    /// This cycle's feedback after its exchange (cycle number `cycle`, SYNC at
+    /// `sync_time`, `fresh`), or the error its state shows.
+    pub(super) fn feedback(
+        &mut self,
+        cycle: u64,
+        sync_time: Instant,
+        fresh: bool,
+        sp: crate::scaling::TorqueSetpoint,
+    ) -> Result<Feedback, MasterError> {
+        let node = self.node();
+        let state = self.state();
+        match state {
+            Some(s) if s.is_fault() => return Err(self.fault_error()),
+            Some(State::OperationEnabled) | None => {}
+            Some(s) => return Err(MasterError::Disabled { node, state: s }),
+        }
+        let t1 = self.exchange.tpdo1;
+        let position = self.unwrap.update(t1.position);
+        Ok(Feedback {
+            cycle,
+            sync_time,
+            statusword: t1.statusword,
+            state,
+            position_rad: self.scaling.position_rad(position),
+            velocity_rad_s: self.scaling.velocity_rad_s(self.exchange.tpdo2.velocity),
+            torque_nm: self.scaling.torque_nm(t1.torque),
+            torque_setpoint_nm: self.scaling.torque_nm(sp.permille),
+            saturated: sp.saturated,
+            fresh,
+            counters: self.exchange.counters,
+        })
     }
 
     /// A bus error while receiving: tolerated (counted) or the end of the exchange, as
@@ -280,14 +361,7 @@ impl<B: CanBus> Drive<B, Enabled> {
     /// errors; other and malformed frames are counted and ignored. No allocation.
     pub fn cycle(&mut self, torque_nm: f64, deadline: Instant) -> Result<Feedback, MasterError> {
         let l = &mut self.link;
-        let node = l.node();
-        if !torque_nm.is_finite() {
-            return Err(MasterError::InvalidSetpoint { node, torque_nm });
-        }
-        let sp = l.scaling.torque_permille(torque_nm);
-        if sp.saturated {
-            l.exchange.counters.saturated += 1;
-        }
+        let sp = l.setpoint(torque_nm)?;
         let cycle = l.exchange.counters.cycles;
         let (sync_time, fresh) = l.exchange(
             Controlword::ENABLE_OPERATION,
@@ -295,27 +369,7 @@ impl<B: CanBus> Drive<B, Enabled> {
             deadline,
             Mode::Strict,
         )?;
-        let state = l.state();
-        match state {
-            Some(s) if s.is_fault() => return Err(l.fault_error()),
-            Some(State::OperationEnabled) | None => {}
-            Some(s) => return Err(MasterError::Disabled { node, state: s }),
-        }
-        let t1 = l.exchange.tpdo1;
-        let position = l.unwrap.update(t1.position);
-        Ok(Feedback {
-            cycle,
-            sync_time,
-            statusword: t1.statusword,
-            state,
-            position_rad: l.scaling.position_rad(position),
-            velocity_rad_s: l.scaling.velocity_rad_s(l.exchange.tpdo2.velocity),
-            torque_nm: l.scaling.torque_nm(t1.torque),
-            torque_setpoint_nm: l.scaling.torque_nm(sp.permille),
-            saturated: sp.saturated,
-            fresh,
-            counters: l.exchange.counters,
-        })
+        l.feedback(cycle, sync_time, fresh, sp)
     }
 
     /// Disable operation then Disable voltage (cycle by cycle, torque 0) to Switch on

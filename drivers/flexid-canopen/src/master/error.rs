@@ -179,6 +179,28 @@ pub enum MasterError {
         /// The state it shows.
         state: State,
     },
+    /// The drives of a group do not share one cycle period.
+    #[error("node {node}: cycle period {period:?} differs from node {first}'s {first_period:?}: a group cycles with one SYNC")]
+    GroupPeriod {
+        /// The drive that differs.
+        node: u8,
+        /// Its period.
+        period: std::time::Duration,
+        /// The group's first drive.
+        first: u8,
+        /// Its period.
+        first_period: std::time::Duration,
+    },
+    /// A group cycle got the wrong number of set-points or feedback slots.
+    #[error("a group of {axes} drives got {torques} set-points and {feedback} feedback slots")]
+    GroupSize {
+        /// Drives in the group.
+        axes: usize,
+        /// Set-points given.
+        torques: usize,
+        /// Feedback slots given.
+        feedback: usize,
+    },
     /// A set-point that is not a finite number.
     #[error("node {node}: torque set-point {torque_nm} N m is not finite")]
     InvalidSetpoint {

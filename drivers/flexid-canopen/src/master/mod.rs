@@ -23,6 +23,7 @@ mod cyclic;
 pub mod error;
 pub mod error_frames;
 pub mod exchange;
+mod group;
 
 use std::marker::PhantomData;
 use std::time::Instant;
@@ -34,6 +35,7 @@ pub use bringup::bring_up;
 pub use config::MasterConfig;
 pub use error::{emcy_text, MasterError};
 pub use error_frames::ErrorFramePolicy;
+pub use group::DriveGroup;
 
 use crate::cia402::Controlword;
 use crate::cob;

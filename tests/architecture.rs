@@ -46,6 +46,7 @@ const LAYERS: &[(&str, &str, &[&str])] = &[
             "flexid-sweep",
             "flexid-can",
             "flexid-canopen",
+            "flexid-vdrive",
         ],
     ),
     (

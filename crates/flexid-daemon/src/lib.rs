@@ -34,6 +34,7 @@ pub mod mqtt;
 pub mod notify;
 pub mod period_relay;
 pub mod request;
+pub mod robot;
 pub mod runner;
 pub mod server;
 pub mod service;

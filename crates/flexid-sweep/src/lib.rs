@@ -15,6 +15,7 @@
 //! the loop with the rows measured so far and an [`RecordingEnd`] that says why.
 
 mod losing;
+mod multi;
 mod plan;
 mod rows;
 mod run;
@@ -22,6 +23,9 @@ mod simulated;
 pub mod stale_fill;
 
 pub use losing::LosingDrive;
+pub use multi::{
+    run_multi_sweep, MultiAxisRecord, MultiProgress, MultiSweepOutcome, MultiSweepPlan,
+};
 pub use plan::{admission_check, default_heartbeats, Pacing, SweepPlan};
 pub use rows::{RecordedRows, Row, RowSink};
 pub use run::{

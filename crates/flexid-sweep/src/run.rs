@@ -155,15 +155,15 @@ impl SweepOutcome {
 /// (preempted, a loaded host) restarts the schedule from now, counted as an overrun:
 /// firing the missed slots back to back would give the drive SYNCs closer than a period
 /// and each cycle no time to answer.
-struct Schedule {
+pub(crate) struct Schedule {
     map: InstantMap,
     period_ns: u64,
     slot_ns: MonoNs,
-    overruns: u64,
+    pub(crate) overruns: u64,
 }
 
 impl Schedule {
-    fn new(period: Duration) -> Self {
+    pub(crate) fn new(period: Duration) -> Self {
         Self {
             map: InstantMap::calibrate(),
             period_ns: (period.as_nanos() as u64).max(1),
@@ -174,7 +174,7 @@ impl Schedule {
 
     /// The deadline of the cycle starting now (the end of its slot).
     #[inline]
-    fn next_deadline(&mut self) -> Instant {
+    pub(crate) fn next_deadline(&mut self) -> Instant {
         let now = clock::now_ns();
         if now > self.slot_ns + self.period_ns / 2 {
             self.slot_ns = now;
@@ -186,7 +186,7 @@ impl Schedule {
 
     /// Sleeps until the end of the current slot (absolute).
     #[inline]
-    fn wait(&self) {
+    pub(crate) fn wait(&self) {
         clock::sleep_until_ns(self.slot_ns);
     }
 }

@@ -29,6 +29,7 @@ mod error;
 pub mod lpm;
 mod lpm_plan;
 mod mimo;
+mod mimo_record;
 mod periodic;
 mod plan_cache;
 pub mod quantisation;
@@ -50,6 +51,7 @@ pub use error::FrfError;
 pub use lpm::{estimate_lpm, estimate_lpm_with_floor, lpm_dof};
 pub use lpm_plan::{LpmPlan, LpmScratch};
 pub use mimo::{MimoError, MimoEstimator, MimoFrf, MAX_INPUT_CONDITION};
+pub use mimo_record::estimate_from_positions;
 pub use periodic::{
     estimate_periodic, NonExcitedLevels, PeriodicEstimator, DEFAULT_INFER_THRESHOLD,
 };

@@ -1,0 +1,9 @@
+//! Multi-axis measurement of a robot (issue 17): a pose measured through a group of
+//! drives with orthogonal multisines ([`measure`]), and a simulated robot on an
+//! in-process bus to run it against ([`sim`]).
+
+pub mod measure;
+pub mod sim;
+
+pub use measure::{measure_pose, plan_pose, MeasurePoseError};
+pub use sim::{SimRobotError, SimulatedRobot};

@@ -134,6 +134,11 @@ impl TestDaemon {
         format!("http://{}{path}", self.addr)
     }
 
+    /// The daemon's shared state.
+    pub fn service(&self) -> std::sync::Arc<flexid::daemon::service::Service> {
+        self.running.as_ref().expect("running").service.clone()
+    }
+
     pub async fn stop(mut self) {
         if let Some(tx) = self.stop.take() {
             let _ = tx.send(());

@@ -55,6 +55,65 @@ pub struct Config {
     /// The axes (at least one).
     #[serde(default)]
     pub axis: Vec<AxisConfig>,
+    /// A multi-axis robot measured with orthogonal multisines (optional).
+    #[serde(default)]
+    pub robot: Option<RobotConfig>,
+}
+
+/// `[robot]`: a robot whose axes are measured together (orthogonal random-phase
+/// multisines, the N x N FRF matrix) and whose flexibilities are identified from it.
+/// Simulated so far: `flexid-vdrive`'s drives of the robot, one per axis, in the daemon's
+/// process on an in-process CAN bus (the same master, frames and sweep loop as a bus).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RobotConfig {
+    /// Name in the API (`[A-Za-z0-9_-]`, 1..=32 characters).
+    pub name: String,
+    /// The robot's flexibility file (TOML naming its URDF); the reference arm
+    /// `robots/flexid-arm6.flex.toml`, embedded, when absent.
+    #[serde(default)]
+    pub flex_file: Option<PathBuf>,
+    /// Cycle rate [Hz], 100 ..= 8000.
+    #[serde(default = "default_robot_cycle_hz")]
+    pub cycle_hz: f64,
+    /// Node id of axis 1 (axis i is `first_node + i - 1`).
+    #[serde(default = "default_first_node")]
+    pub first_node: u8,
+    /// Periods per experiment averaged (>= 1) and left to settle before them.
+    #[serde(default = "default_robot_periods")]
+    pub periods: usize,
+    #[serde(default = "default_robot_transient")]
+    pub transient_periods: usize,
+    /// How the cycle is timed (the simulated robot: `simulated`, as fast as it goes).
+    #[serde(default = "default_robot_clock")]
+    pub clock: ClockKind,
+    /// The simulated robot's springs deviate from the file's by up to this fraction
+    /// (each by its own seeded factor), as a real arm deviates from its data sheet; the
+    /// identification starts from the file's values. 0 ..= 0.9.
+    #[serde(default = "default_deviation")]
+    pub simulated_deviation: f64,
+    /// Seed of those factors.
+    #[serde(default)]
+    pub simulated_seed: u64,
+}
+
+fn default_robot_cycle_hz() -> f64 {
+    1000.0
+}
+fn default_first_node() -> u8 {
+    2
+}
+fn default_robot_periods() -> usize {
+    4
+}
+fn default_robot_transient() -> usize {
+    1
+}
+fn default_robot_clock() -> ClockKind {
+    ClockKind::Simulated
+}
+fn default_deviation() -> f64 {
+    0.3
 }
 
 /// `[api]`.
@@ -386,6 +445,31 @@ impl Config {
             }
             if l.max_sweep_s > 3600.0 {
                 return Err(bad(key("limits.max_sweep_s"), "must be at most 3600 s"));
+            }
+        }
+        if let Some(r) = &self.robot {
+            let key = |k: &str| format!("robot.{k}");
+            if !valid_name(&r.name) {
+                return Err(bad(
+                    key("name"),
+                    "must be 1..=32 characters of [A-Za-z0-9_-]",
+                ));
+            }
+            if !(r.cycle_hz.is_finite() && (100.0..=8000.0).contains(&r.cycle_hz)) {
+                return Err(bad(key("cycle_hz"), "must be 100..=8000 Hz"));
+            }
+            if !(1..=127).contains(&r.first_node) {
+                return Err(bad(key("first_node"), "must be 1..=127"));
+            }
+            if !(1..=64).contains(&r.periods) || r.transient_periods > 16 {
+                return Err(bad(
+                    key("periods"),
+                    "periods must be 1..=64 and transient_periods 0..=16",
+                ));
+            }
+            if !(r.simulated_deviation.is_finite() && (0.0..=0.9).contains(&r.simulated_deviation))
+            {
+                return Err(bad(key("simulated_deviation"), "must be 0..=0.9"));
             }
         }
         Ok(())

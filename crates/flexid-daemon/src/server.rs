@@ -123,7 +123,14 @@ pub async fn start(
     }
     let nofile = connections::raise_nofile();
     let limits = connections::Limits::for_nofile(nofile);
-    let svc = Service::new(config, token, backend, store, mqtt);
+    let robot = match &config.robot {
+        Some(r) => Some(
+            crate::robot::RobotService::new(r.clone(), &config.data_dir)
+                .map_err(|e| DaemonError::Backend(e.to_string()))?,
+        ),
+        None => None,
+    };
+    let svc = Service::new(config, token, backend, store, mqtt, robot);
     let app = api::router(svc.clone()).merge(super::web::router());
     notify::ready(&format!("API on {addr}"));
     notify::spawn_watchdog(stop_rx.clone());

@@ -75,6 +75,8 @@ pub struct Service {
     pub backend: Arc<dyn AxisBackend>,
     pub store: Store,
     pub mqtt: Option<Mqtt>,
+    /// The configuration's `[robot]`, if any (multi-axis sweeps and identification).
+    pub robot: Option<Arc<crate::robot::RobotService>>,
     pub(crate) axes: Mutex<HashMap<String, AxisRuntime>>,
     /// Sweeps run by this process (live hubs).
     pub(crate) hubs: Mutex<HashMap<String, Arc<SweepHub>>>,
@@ -91,6 +93,7 @@ impl Service {
         backend: Arc<dyn AxisBackend>,
         store: Store,
         mqtt: Option<Mqtt>,
+        robot: Option<Arc<crate::robot::RobotService>>,
     ) -> Arc<Service> {
         store.recover();
         let mut axes: HashMap<String, AxisRuntime> = config
@@ -117,6 +120,7 @@ impl Service {
             backend,
             store,
             mqtt,
+            robot,
             axes: Mutex::new(axes),
             hubs: Mutex::new(HashMap::new()),
             index: Mutex::new(index),
@@ -309,6 +313,9 @@ impl Service {
     pub fn shutdown(&self, timeout: std::time::Duration) {
         for hub in self.hubs.lock().unwrap_or_else(|e| e.into_inner()).values() {
             hub.abort.abort("daemon shutdown");
+        }
+        if let Some(r) = &self.robot {
+            r.shutdown();
         }
         let t0 = std::time::Instant::now();
         let runners: Vec<_> =

@@ -1,4 +1,4 @@
-//! The web page of the daemon: `GET /` (and `/index.html`), `/app.js`, `/bode.js`,
+//! The web page of the daemon: `GET /` (and `/index.html`), `/app.js`, `/bode.js`, `/matrix.js`, `/robot.js`,
 //! `/style.css`, embedded in the binary (no build step, nothing fetched from elsewhere).
 //!
 //! The files are static and served without a token: they hold no configuration, no axis and
@@ -17,6 +17,8 @@ pub const FILES: &[(&str, &str, &str)] = &[
     ("/index.html", HTML, include_str!("web/index.html")),
     ("/app.js", JS, include_str!("web/app.js")),
     ("/bode.js", JS, include_str!("web/bode.js")),
+    ("/matrix.js", JS, include_str!("web/matrix.js")),
+    ("/robot.js", JS, include_str!("web/robot.js")),
     (
         "/style.css",
         "text/css; charset=utf-8",

@@ -4,6 +4,7 @@
 
 mod error;
 mod handlers;
+mod robot;
 mod sse;
 
 pub use error::ApiError;
@@ -32,6 +33,14 @@ pub const ROUTES: &[(&str, &str)] = &[
     ("get", "/api/v1/sweeps/{id}/frf.csv"),
     ("get", "/api/v1/sweeps/{id}/bode.svg"),
     ("get", "/api/v1/sweeps/{id}/diagnosis"),
+    ("get", "/api/v1/robot"),
+    ("post", "/api/v1/robot/sweeps"),
+    ("post", "/api/v1/robot/identifications"),
+    ("get", "/api/v1/robot/jobs/{id}"),
+    ("post", "/api/v1/robot/jobs/{id}/abort"),
+    ("get", "/api/v1/robot/jobs/{id}/frf_matrix.json"),
+    ("get", "/api/v1/robot/jobs/{id}/bode_matrix.svg"),
+    ("get", "/api/v1/robot/jobs/{id}/identification.json"),
 ];
 
 /// The router over `svc`.
@@ -48,6 +57,26 @@ pub fn router(svc: Arc<Service>) -> Router {
         .route("/api/v1/sweeps/{id}/frf.csv", get(h::frf_csv))
         .route("/api/v1/sweeps/{id}/bode.svg", get(h::bode_svg))
         .route("/api/v1/sweeps/{id}/diagnosis", get(h::diagnosis))
+        .route("/api/v1/robot", get(robot::view))
+        .route("/api/v1/robot/sweeps", post(robot::start_sweep))
+        .route(
+            "/api/v1/robot/identifications",
+            post(robot::start_identification),
+        )
+        .route("/api/v1/robot/jobs/{id}", get(robot::job))
+        .route("/api/v1/robot/jobs/{id}/abort", post(robot::abort))
+        .route(
+            "/api/v1/robot/jobs/{id}/frf_matrix.json",
+            get(robot::frf_matrix),
+        )
+        .route(
+            "/api/v1/robot/jobs/{id}/bode_matrix.svg",
+            get(robot::bode_matrix),
+        )
+        .route(
+            "/api/v1/robot/jobs/{id}/identification.json",
+            get(robot::identification),
+        )
         .fallback(|| async { ApiError::new(StatusCode::NOT_FOUND, "no such route") })
         .layer(axum::extract::DefaultBodyLimit::max(BODY_LIMIT))
         .layer(tower_http::limit::RequestBodyLimitLayer::new(BODY_LIMIT))

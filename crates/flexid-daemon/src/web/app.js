@@ -54,6 +54,7 @@ function loggedOut(why) {
   $('logout').hidden = true;
   $('axis').disabled = true;
   $('start').disabled = true;
+  $('robot').hidden = true;
 }
 
 async function connect() {
@@ -74,6 +75,7 @@ async function connect() {
   $('token').value = '';
   $('axis').disabled = false;
   followRunningSweep();
+  robotConnect();
 }
 
 // ---- axes ------------------------------------------------------------------------------

@@ -195,3 +195,58 @@ async fn browser_watches_the_bode_plot_grow_aborts_and_reads_the_parameters() {
     assert_eq!(st["reason"], "operator abort");
     d.stop().await;
 }
+
+/// Issue 17: the robot section in the browser: two multi-axis sweeps through the daemon
+/// (the reference arm simulated by flexid-vdrive's drives), the 6 x 6 Bode matrix drawn
+/// with a measured trace in every element, the identification's table and the model over
+/// every element; the stiffnesses the page shows are the simulated robot's within 5 %.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn browser_shows_the_robots_bode_matrix_and_its_identified_model() {
+    if let Some(why) = missing_tools() {
+        if std::env::var("CI").as_deref() == Ok("true") {
+            panic!("browser test needs: {why}");
+        }
+        eprintln!("skipped: browser test: {why}");
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let d = TestDaemon::start(
+        tmp.path(),
+        "[robot]\nname = \"arm\"\nperiods = 2\ntransient_periods = 1\n",
+    )
+    .await;
+    let shots = Path::new(env!("CARGO_MANIFEST_DIR")).join("target/browser");
+    std::fs::create_dir_all(&shots).unwrap();
+    let shot = shots.join("robot-bode-matrix.png");
+    let _ = std::fs::remove_file(&shot);
+    let mut cmd = Command::new("node");
+    cmd.arg("robot.mjs")
+        .current_dir(browser_dir())
+        .env("FLEXID_URL", d.url(""))
+        .env("FLEXID_TOKEN", TOKEN)
+        .env("FLEXID_SCREENSHOT", &shot);
+    let out = tokio::task::spawn_blocking(move || cmd.output())
+        .await
+        .unwrap()
+        .expect("node runs");
+    let stdout = String::from_utf8_lossy(&out.stdout).to_string();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    println!("{stdout}");
+    eprintln!("{stderr}");
+    assert!(out.status.success(), "the browser script failed:\n{stderr}");
+    assert!(stdout.contains("browser: ok"), "{stdout}");
+    let png = std::fs::read(&shot).expect("screenshot written");
+    assert!(png.starts_with(b"\x89PNG") && png.len() > 10_000);
+    println!("screenshot of the Bode matrix: {}", shot.display());
+    let svc = d.service();
+    let robot = svc.robot.as_ref().unwrap();
+    for (j, name) in robot.robot.parameter_names().iter().take(12).enumerate() {
+        let shown = result_value(&stdout, name);
+        let truth = robot.simulated_springs().stiffness_nm_per_rad[j];
+        assert!(
+            (shown / truth - 1.0).abs() < 0.05,
+            "{name}: the page shows {shown}, the simulated robot has {truth}"
+        );
+    }
+    d.stop().await;
+}

@@ -75,6 +75,19 @@ pub struct Flexibilities {
 }
 
 impl Flexibilities {
+    /// Every value times its own factor `exp(u ln(1 + d))`, `u` uniform in `[-1, 1]` drawn
+    /// from `seed` (so within `[1/(1+d), 1+d]`): a simulated robot that deviates from its
+    /// data sheet as a real one does. `d = 0` gives the values unchanged.
+    pub fn deviated(&self, d: f64, seed: u64) -> Flexibilities {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand::rngs::StdRng::seed_from_u64(seed ^ 0x0b0b_5eed);
+        let mut f = |v: &f64| v * ((1.0 + d).ln() * rng.random_range(-1.0..=1.0)).exp();
+        Flexibilities {
+            stiffness_nm_per_rad: self.stiffness_nm_per_rad.iter().map(&mut f).collect(),
+            damping_nms_per_rad: self.damping_nms_per_rad.iter().map(&mut f).collect(),
+        }
+    }
+
     /// Validated: as many dampings as stiffnesses, stiffnesses positive, dampings
     /// non-negative, all finite.
     pub fn new(
@@ -177,5 +190,24 @@ mod tests {
         for (a, b) in back.damping_nms_per_rad.iter().zip(&f.damping_nms_per_rad) {
             assert!((a / b - 1.0).abs() < 1e-14);
         }
+    }
+
+    #[test]
+    fn deviations_stay_within_their_bound_and_differ() {
+        let r = crate::manipulator::reference::robot();
+        let d = r.nominal.deviated(0.3, 7);
+        let mut ratios = Vec::new();
+        for (a, b) in d
+            .stiffness_nm_per_rad
+            .iter()
+            .zip(&r.nominal.stiffness_nm_per_rad)
+        {
+            let x = a / b;
+            assert!((1.0 / 1.3 - 1e-12..=1.3 + 1e-12).contains(&x), "{x}");
+            ratios.push(x);
+        }
+        assert!(ratios.iter().any(|x| (x - 1.0).abs() > 0.05));
+        assert_eq!(r.nominal.deviated(0.3, 7), d, "seeded");
+        assert_eq!(r.nominal.deviated(0.0, 7), r.nominal);
     }
 }

@@ -13,9 +13,10 @@ use std::sync::Arc;
 
 type Svc = State<Arc<Service>>;
 
-/// `GET /api/v1/axes`.
+/// `GET /api/v1/axes`: the axes, and the configured robot's name (`null` without one).
 pub async fn list_axes(State(svc): Svc) -> Response {
-    Json(json!({ "axes": svc.axes() })).into_response()
+    let robot = svc.robot.as_ref().map(|r| r.cfg.name.clone());
+    Json(json!({ "axes": svc.axes(), "robot": robot })).into_response()
 }
 
 /// `POST /api/v1/axes/{axis}/sweeps` -> 202 `{"sweep_id", "axis", "events", "status"}`.

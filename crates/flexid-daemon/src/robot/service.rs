@@ -19,7 +19,7 @@ use flexid_canopen::MasterConfig;
 use flexid_core::manipulator::identify::{model_frf, FrfForm};
 use flexid_core::manipulator::measure::MeasureOptions;
 use flexid_core::manipulator::{
-    identify, Cost, CostSpec, FlexFile, Flexibilities, FlexibleRobot, IdentifyOptions, PoseRole,
+    identify, Cost, CostSpec, Flexibilities, FlexibleRobot, IdentifyOptions, PoseRole,
     Weighting,
 };
 use flexid_files::plot::{bode_matrix_svg, BodeMatrix};
@@ -128,37 +128,12 @@ pub struct RobotService {
     threads: Mutex<Vec<std::thread::JoinHandle<()>>>,
 }
 
-/// A flexibility file's robot: the file and its URDF (relative to the file), or the
-/// embedded reference arm.
+/// The robot of a flexibility file (the embedded reference arm without one).
 pub fn load_robot(path: Option<&Path>) -> Result<FlexibleRobot, RobotError> {
-    let Some(path) = path else {
-        return Ok(flexid_core::manipulator::reference::robot());
-    };
-    let err = |detail: String| RobotError::Load {
-        path: path.display().to_string(),
-        detail,
-    };
-    let text = std::fs::read_to_string(path).map_err(|e| err(e.to_string()))?;
-    let file =
-        FlexFile::parse(&text, &path.display().to_string()).map_err(|e| err(e.to_string()))?;
-    let urdf_path = path.parent().unwrap_or(Path::new(".")).join(&file.urdf);
-    let urdf = std::fs::read_to_string(&urdf_path)
-        .map_err(|e| err(format!("{}: {e}", urdf_path.display())))?;
-    let rigid = flexid_core::robot::SerialRobot::from_urdf_str(&urdf)
-        .map_err(|e| err(format!("{}: {e}", urdf_path.display())))?;
-    FlexibleRobot::new(rigid, &file).map_err(|e| err(e.to_string()))
-}
-
-/// The file's springs, each times its own factor `exp(u ln(1 + d))`, `u` uniform in
-/// `[-1, 1]` from `seed` (so within `[1/(1+d), 1+d]`).
-fn deviate(nominal: &Flexibilities, d: f64, seed: u64) -> Flexibilities {
-    use rand::{Rng, SeedableRng};
-    let mut rng = rand::rngs::StdRng::seed_from_u64(seed ^ 0x0b0b_5eed);
-    let mut f = |v: &f64| v * ((1.0 + d).ln() * rng.random_range(-1.0..=1.0)).exp();
-    Flexibilities {
-        stiffness_nm_per_rad: nominal.stiffness_nm_per_rad.iter().map(&mut f).collect(),
-        damping_nms_per_rad: nominal.damping_nms_per_rad.iter().map(&mut f).collect(),
-    }
+    flexid_vdrive::robot::load_robot(path).map_err(|e| RobotError::Load {
+        path: path.map_or_else(|| "embedded".into(), |p| p.display().to_string()),
+        detail: e,
+    })
 }
 
 impl RobotService {
@@ -166,7 +141,9 @@ impl RobotService {
     /// listed; one that was running when the daemon stopped is marked failed).
     pub fn new(cfg: RobotConfig, data_dir: &Path) -> Result<Arc<Self>, RobotError> {
         let robot = load_robot(cfg.flex_file.as_deref())?;
-        let simulated = deviate(&robot.nominal, cfg.simulated_deviation, cfg.simulated_seed);
+        let simulated = robot
+            .nominal
+            .deviated(cfg.simulated_deviation, cfg.simulated_seed);
         let dir = data_dir.join(".robot").join(&cfg.name);
         std::fs::create_dir_all(&dir)
             .map_err(|e| RobotError::Io(format!("{}: {e}", dir.display())))?;
@@ -677,28 +654,4 @@ fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<(), String> {
     let text = serde_json::to_vec(value).map_err(|e| e.to_string())?;
     flexid_files::recording::write_bytes_atomic(path, &text)
         .map_err(|e| format!("{}: {e}", path.display()))
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn deviations_stay_within_their_bound_and_differ() {
-        let r = flexid_core::manipulator::reference::robot();
-        let d = deviate(&r.nominal, 0.3, 7);
-        let mut ratios = Vec::new();
-        for (a, b) in d
-            .stiffness_nm_per_rad
-            .iter()
-            .zip(&r.nominal.stiffness_nm_per_rad)
-        {
-            let x = a / b;
-            assert!((1.0 / 1.3 - 1e-12..=1.3 + 1e-12).contains(&x), "{x}");
-            ratios.push(x);
-        }
-        assert!(ratios.iter().any(|x| (x - 1.0).abs() > 0.05));
-        assert_eq!(deviate(&r.nominal, 0.3, 7), d, "seeded");
-        assert_eq!(deviate(&r.nominal, 0.0, 7), r.nominal);
-    }
 }

@@ -82,7 +82,9 @@ async function connect() {
 
 async function refreshAxes() {
   const r = await api('/api/v1/axes');
-  state.axes = (await r.json()).axes || [];
+  const body = await r.json();
+  state.axes = body.axes || [];
+  state.robot = body.robot || null;
   const sel = $('axis');
   const keep = sel.value;
   sel.replaceChildren(...state.axes.map((a) => {

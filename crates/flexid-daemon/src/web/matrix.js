@@ -46,7 +46,9 @@ function drawBodeMatrix(svg, data) {
       for (let k = Math.log10(fLo); k <= Math.log10(fHi) + 1e-9; k++) {
         const x = sx(Math.pow(10, k));
         el('line', { x1: x, x2: x, y1: y0, y2: y0 + ch, class: 'grid major' }, g);
-        if (i === n - 1) text(g, x, y0 + ch + 12, fmtHz(Math.pow(10, k)), { 'text-anchor': 'middle' });
+        // the left edge's label only in the first column (it would meet the previous cell's right one)
+        const edge = k <= Math.log10(fLo) + 1e-9;
+        if (i === n - 1 && (j === 0 || !edge)) text(g, x, y0 + ch + 12, fmtHz(Math.pow(10, k)), { 'text-anchor': 'middle' });
       }
       for (let v = yLo; v <= yHi; v += 40) {
         const y = sy(v);

@@ -20,6 +20,10 @@ function robotSay(msg, bad) {
 
 /** After login: show the section when a robot is configured. */
 async function robotConnect() {
+  if (!state.robot) {
+    $('robot').hidden = true;
+    return;
+  }
   try {
     const r = await api('/api/v1/robot');
     robot.info = await r.json();
@@ -89,7 +93,10 @@ function robotFollow(id) {
     }
     robot.job = job;
     $('robot-state').textContent = `${job.kind} ${job.state}`;
-    if (job.kind === 'sweep') {
+    if (job.kind === 'sweep' && job.cycles === 0) {
+      $('robot-progress').removeAttribute('value');
+      $('robot-text').textContent = `pose ${job.pose} · bringing the drives up`;
+    } else if (job.kind === 'sweep') {
       $('robot-progress').max = Math.max(1, job.cycles);
       $('robot-progress').value = job.cycle;
       $('robot-text').textContent = `pose ${job.pose} · experiment ${Math.min(job.experiment + 1, job.experiments)} ` +
@@ -141,7 +148,7 @@ async function robotShowIdentification(id) {
     tr.dataset.value = String(p.value);
     const known = p.identifiable === true && Number.isFinite(p.std_rel);
     const cells = [p.name, known ? fmt(p.value) : 'not identifiable', fmt(p.nominal),
-      known ? `${(100 * p.std_rel).toFixed(2)} %` : '–', p.unit];
+      known ? `${(100 * p.std_rel).toPrecision(2)} %` : '–', p.unit];
     cells.forEach((c, i) => {
       const td = tr.insertCell();
       td.textContent = c;

@@ -15,7 +15,9 @@ mod plant;
 
 pub use plant::{CoupledAxis, RobotPlant, SharedPlant, QUEUE};
 
-use flexid_core::manipulator::{Flexibilities, FlexibleRobot, ManipulatorError};
+use std::path::Path;
+
+use flexid_core::manipulator::{FlexFile, Flexibilities, FlexibleRobot, ManipulatorError};
 
 use crate::config::{ClockMode, DriveConfig, DriveSection};
 use crate::drive::{DriveError, VirtualDrive};
@@ -122,4 +124,22 @@ pub fn robot_drives(
         drives.push(drive);
     }
     Ok((DriveSet::new(drives), plant))
+}
+
+/// The robot of a flexibility file and the URDF it names (relative to the file), or the
+/// embedded reference arm (`robots/flexid-arm6.flex.toml`) without a path. The error says
+/// which file and what is wrong.
+pub fn load_robot(path: Option<&Path>) -> Result<FlexibleRobot, String> {
+    let Some(path) = path else {
+        return Ok(flexid_core::manipulator::reference::robot());
+    };
+    let origin = path.display().to_string();
+    let text = std::fs::read_to_string(path).map_err(|e| format!("{origin}: {e}"))?;
+    let file = FlexFile::parse(&text, &origin).map_err(|e| e.to_string())?;
+    let urdf_path = path.parent().unwrap_or(Path::new(".")).join(&file.urdf);
+    let urdf =
+        std::fs::read_to_string(&urdf_path).map_err(|e| format!("{}: {e}", urdf_path.display()))?;
+    let rigid = flexid_core::robot::SerialRobot::from_urdf_str(&urdf)
+        .map_err(|e| format!("{}: {e}", urdf_path.display()))?;
+    FlexibleRobot::new(rigid, &file).map_err(|e| format!("{origin}: {e}"))
 }

@@ -15,10 +15,9 @@ use flexid_core::manipulator::flex_file::PoseRole;
 use flexid_core::manipulator::identify::{model_frf, FrfForm};
 use flexid_core::manipulator::measure::{simulate, MeasureOptions};
 use flexid_core::manipulator::{
-    identify, Cost, CostSpec, FlexFile, Flexibilities, FlexibleRobot, IdentifyOptions,
-    PoseMeasurement, Weighting,
+    identify, Cost, CostSpec, Flexibilities, FlexibleRobot, IdentifyOptions, PoseMeasurement,
+    Weighting,
 };
-use flexid_core::robot::SerialRobot;
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -219,35 +218,7 @@ pub fn robot(a: &RobotArgs) -> Result<(), CliError> {
 
 /// The robot of `--robot`, or the embedded reference arm.
 fn load(a: &RobotArgs) -> Result<FlexibleRobot, CliError> {
-    let (flex_text, origin, urdf_text) = match &a.robot {
-        None => (
-            flexid_core::manipulator::reference::FLEX.to_string(),
-            "robots/flexid-arm6.flex.toml (embedded)".to_string(),
-            None,
-        ),
-        Some(p) => (
-            std::fs::read_to_string(p)
-                .map_err(|e| CliError::input(format!("{}: {e}", p.display())))?,
-            p.display().to_string(),
-            Some(p.clone()),
-        ),
-    };
-    let file = FlexFile::parse(&flex_text, &origin).map_err(|e| CliError::input(e.to_string()))?;
-    let urdf = match urdf_text {
-        None => flexid_core::manipulator::reference::URDF.to_string(),
-        Some(p) => {
-            let path = p
-                .parent()
-                .unwrap_or(std::path::Path::new("."))
-                .join(&file.urdf);
-            std::fs::read_to_string(&path).map_err(|e| {
-                CliError::input(format!("{} (the urdf of {origin}): {e}", path.display()))
-            })?
-        }
-    };
-    let rigid = SerialRobot::from_urdf_str(&urdf)
-        .map_err(|e| CliError::input(format!("{}: {e}", file.urdf)))?;
-    FlexibleRobot::new(rigid, &file).map_err(|e| CliError::input(format!("{origin}: {e}")))
+    flexid_vdrive::robot::load_robot(a.robot.as_deref()).map_err(CliError::input)
 }
 
 /// The identified parameters against the simulated robot's.

@@ -4,7 +4,15 @@
 //! job's status (`job.json`). Written atomically; read back to identify from sweeps of an
 //! earlier run.
 
+use std::path::Path;
+
 use flexid_core::frf::MimoFrf;
+use flexid_core::manipulator::identify::{model_frf, FrfForm};
+use flexid_core::manipulator::{
+    identify, Cost, CostSpec, Flexibilities, FlexibleRobot, IdentifyOptions, Weighting,
+};
+use flexid_files::plot::{bode_matrix_svg, BodeMatrix};
+use flexid_sweep::MultiSweepOutcome;
 use nalgebra::DMatrix;
 use num_complex::Complex64;
 use serde::{Deserialize, Serialize};
@@ -168,6 +176,155 @@ impl FrfMatrixFile {
             var_sym: Some(var_matrices(&self.var_sym)),
         })
     }
+}
+
+/// Writes `value` as JSON to `path` atomically.
+pub fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<(), String> {
+    let text = serde_json::to_vec(value).map_err(|e| e.to_string())?;
+    flexid_files::recording::write_bytes_atomic(path, &text)
+        .map_err(|e| format!("{}: {e}", path.display()))
+}
+
+/// Writes a measured pose into `dir`: `frf_matrix.json` and `bode_matrix.svg`. Returns a
+/// one-line summary of the measurement.
+pub fn write_pose_files(
+    dir: &Path,
+    robot: &str,
+    pose: &str,
+    q_deg: &[f64],
+    nodes: &[u8],
+    frf: &MimoFrf,
+    outcome: &MultiSweepOutcome,
+) -> Result<String, String> {
+    std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    let file = FrfMatrixFile::new(robot, pose, q_deg, nodes, frf);
+    write_json(&dir.join(FRF_MATRIX_JSON), &file)?;
+    let title = format!("{robot} at pose {pose}: FRF matrix, motor torques to motor speeds");
+    let svg = bode_matrix_svg(&BodeMatrix {
+        title: &title,
+        f_hz: &frf.freq_hz,
+        measured: &frf.g,
+        var: Some(&frf.var),
+        model: None,
+    });
+    let svg_path = dir.join(BODE_MATRIX_SVG);
+    flexid_files::recording::write_bytes_atomic(&svg_path, svg.as_bytes())
+        .map_err(|e| format!("{}: {e}", svg_path.display()))?;
+    let lost: u64 = outcome.counters.iter().map(|c| c.lost).sum();
+    Ok(format!(
+        "{} cycles on {} axes, {} lines of {:.0}-{:.0} Hz, {lost} feedback messages lost",
+        outcome.record.len(),
+        nodes.len(),
+        frf.freq_hz.len(),
+        frf.freq_hz.first().copied().unwrap_or(0.0),
+        frf.freq_hz.last().copied().unwrap_or(0.0)
+    ))
+}
+
+/// Identifies `robot`'s flexibilities from measured poses (`(sweep id, file)`): the
+/// paper's cost with inverse-variance weights on the sampled model at `fs_hz`, `starts`
+/// starts from the file's values. Returns `identification.json`'s document (every
+/// parameter with its file value, uncertainty and identifiability, every start's cost,
+/// V per pose, the model's magnitudes and phases at each pose) and a one-line summary.
+pub fn identify_files(
+    robot: &FlexibleRobot,
+    name: &str,
+    files: &[(String, FrfMatrixFile)],
+    starts: usize,
+    fs_hz: f64,
+) -> Result<(serde_json::Value, String), String> {
+    let mut poses = Vec::new();
+    let mut meas = Vec::new();
+    for (_, f) in files {
+        let q: Vec<f64> = f.q_deg.iter().map(|d| d.to_radians()).collect();
+        poses.push(
+            robot
+                .pose(&q)
+                .map_err(|e| format!("pose {}: {e}", f.pose))?,
+        );
+        meas.push(
+            f.measurement()
+                .ok_or_else(|| format!("pose {}: a ragged FRF matrix", f.pose))?,
+        );
+    }
+    let spec = CostSpec {
+        weighting: Weighting::InverseVariance,
+        ..CostSpec::default()
+    };
+    let cost = Cost::new(&meas, spec).map_err(|e| e.to_string())?;
+    let form = FrfForm::Sampled { fs_hz };
+    let result = identify(
+        &poses,
+        &cost,
+        &robot.nominal,
+        &IdentifyOptions {
+            starts,
+            form,
+            ..IdentifyOptions::default()
+        },
+    )
+    .map_err(|e| e.to_string())?;
+    let model = model_frf(&poses, &cost, &result.best, form).map_err(|e| e.to_string())?;
+    let names = robot.parameter_names();
+    let ns = robot.springs.len();
+    let flat = |t: &Flexibilities| -> Vec<f64> {
+        t.stiffness_nm_per_rad
+            .iter()
+            .chain(&t.damping_nms_per_rad)
+            .copied()
+            .collect()
+    };
+    let (values, nominal) = (flat(&result.best), flat(&robot.nominal));
+    let params: Vec<_> = names
+        .iter()
+        .enumerate()
+        .map(|(j, n)| {
+            let std = result
+                .std_ln
+                .as_ref()
+                .map(|s| s[j])
+                .filter(|s| s.is_finite());
+            serde_json::json!({
+                "name": n,
+                "value": values[j],
+                "nominal": nominal[j],
+                "unit": if j < ns { "N m/rad" } else { "N m s/rad" },
+                "std_rel": std,
+                "identifiable": result.identifiable(j),
+            })
+        })
+        .collect();
+    let models: Vec<_> = files
+        .iter()
+        .zip(&model)
+        .zip(&result.cost_per_pose)
+        .map(|(((s, f), g), v)| {
+            let (mag, phase) = MatrixLines::of(g).bode();
+            serde_json::json!({
+                "sweep": s, "pose": f.pose, "v_db": v,
+                "freq_hz": f.freq_hz, "magnitude_db": mag, "phase_deg": phase,
+            })
+        })
+        .collect();
+    let good = result.good.len();
+    let doc = serde_json::json!({
+        "robot": name,
+        "sweeps": files.iter().map(|(s, _)| s).collect::<Vec<_>>(),
+        "starts": result.starts.iter().map(|s| s.cost).collect::<Vec<_>>(),
+        "good_starts": good,
+        "cost_db": result.cost,
+        "cost_per_pose_db": result.cost_per_pose,
+        "form": "sampled",
+        "parameters": params,
+        "models": models,
+    });
+    let summary = format!(
+        "{} parameters from {} poses; V {:.4} dB; {good} of {starts} starts reached the best cost",
+        names.len(),
+        files.len(),
+        result.cost
+    );
+    Ok((doc, summary))
 }
 
 #[cfg(test)]

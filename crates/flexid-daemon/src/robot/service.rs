@@ -16,20 +16,16 @@ use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
 use flexid_canopen::MasterConfig;
-use flexid_core::manipulator::identify::{model_frf, FrfForm};
 use flexid_core::manipulator::measure::MeasureOptions;
-use flexid_core::manipulator::{
-    identify, Cost, CostSpec, Flexibilities, FlexibleRobot, IdentifyOptions, PoseRole,
-    Weighting,
-};
-use flexid_files::plot::{bode_matrix_svg, BodeMatrix};
+use flexid_core::manipulator::{Flexibilities, FlexibleRobot, PoseRole};
 use flexid_sweep::Pacing;
 use flexid_vdrive::robot::RobotDriveOptions;
 use flexid_vdrive::ClockMode;
 use serde::{Deserialize, Serialize};
 
 use super::files::{
-    FrfMatrixFile, MatrixLines, BODE_MATRIX_SVG, FRF_MATRIX_JSON, IDENTIFICATION_JSON, JOB_JSON,
+    identify_files, write_json, write_pose_files, FrfMatrixFile, FRF_MATRIX_JSON,
+    IDENTIFICATION_JSON, JOB_JSON,
 };
 use super::measure::{measure_pose, plan_pose};
 use super::sim::SimulatedRobot;
@@ -440,31 +436,16 @@ impl RobotService {
                 ));
             }
         };
-        let file = FrfMatrixFile::new(&self.cfg.name, pose_name, q_deg, sim.nodes(), &frf);
-        let d = self.dir.join(id);
-        write_json(&d.join(FRF_MATRIX_JSON), &file).map_err(failed)?;
-        let title = format!(
-            "{} at pose {pose_name}: FRF matrix, motor torques to motor speeds",
-            self.cfg.name
-        );
-        let svg = bode_matrix_svg(&BodeMatrix {
-            title: &title,
-            f_hz: &frf.freq_hz,
-            measured: &frf.g,
-            var: Some(&frf.var),
-            model: None,
-        });
-        flexid_files::recording::write_bytes_atomic(&d.join(BODE_MATRIX_SVG), svg.as_bytes())
-            .map_err(|e| failed(e.to_string()))?;
-        let lost: u64 = outcome.counters.iter().map(|c| c.lost).sum();
-        Ok(format!(
-            "{} cycles on {} axes, {} lines of {:.0}-{:.0} Hz, {lost} feedback messages lost",
-            outcome.record.len(),
-            self.robot.axes(),
-            frf.freq_hz.len(),
-            frf.freq_hz.first().copied().unwrap_or(0.0),
-            frf.freq_hz.last().copied().unwrap_or(0.0)
-        ))
+        write_pose_files(
+            &self.dir.join(id),
+            &self.cfg.name,
+            pose_name,
+            q_deg,
+            sim.nodes(),
+            &frf,
+            &outcome,
+        )
+        .map_err(failed)
     }
 
     /// The completed sweeps an identification uses: those named, or the latest of every
@@ -543,115 +524,19 @@ impl RobotService {
             let text = std::fs::read_to_string(&p).map_err(|e| format!("{}: {e}", p.display()))?;
             let f: FrfMatrixFile =
                 serde_json::from_str(&text).map_err(|e| format!("{}: {e}", p.display()))?;
-            files.push(f);
+            files.push((s.clone(), f));
         }
-        let mut poses = Vec::new();
-        let mut meas = Vec::new();
-        for f in &files {
-            let q: Vec<f64> = f.q_deg.iter().map(|d| d.to_radians()).collect();
-            poses.push(self.robot.pose(&q).map_err(|e| e.to_string())?);
-            meas.push(
-                f.measurement()
-                    .ok_or_else(|| format!("sweep at {}: a ragged FRF matrix", f.pose))?,
-            );
-        }
-        let spec = CostSpec {
-            weighting: Weighting::InverseVariance,
-            ..CostSpec::default()
-        };
-        let cost = Cost::new(&meas, spec).map_err(|e| e.to_string())?;
-        let form = FrfForm::Sampled {
-            fs_hz: self.cfg.cycle_hz,
-        };
         self.update(id, |j| {
             j.message = format!("identifying from {starts} starts")
         });
-        let result = identify(
-            &poses,
-            &cost,
-            &self.robot.nominal,
-            &IdentifyOptions {
-                starts,
-                form,
-                ..IdentifyOptions::default()
-            },
-        )
-        .map_err(|e| e.to_string())?;
-        let model = model_frf(&poses, &cost, &result.best, form).map_err(|e| e.to_string())?;
-        let names = self.robot.parameter_names();
-        let ns = self.robot.springs.len();
-        let values: Vec<f64> = result
-            .best
-            .stiffness_nm_per_rad
-            .iter()
-            .chain(&result.best.damping_nms_per_rad)
-            .copied()
-            .collect();
-        let nominal: Vec<f64> = self
-            .robot
-            .nominal
-            .stiffness_nm_per_rad
-            .iter()
-            .chain(&self.robot.nominal.damping_nms_per_rad)
-            .copied()
-            .collect();
-        let params: Vec<_> = names
-            .iter()
-            .enumerate()
-            .map(|(j, n)| {
-                let std = result
-                    .std_ln
-                    .as_ref()
-                    .map(|s| s[j])
-                    .filter(|s| s.is_finite());
-                serde_json::json!({
-                    "name": n,
-                    "value": values[j],
-                    "nominal": nominal[j],
-                    "unit": if j < ns { "N m/rad" } else { "N m s/rad" },
-                    "std_rel": std,
-                    "identifiable": result.identifiable(j),
-                })
-            })
-            .collect();
-        let models: Vec<_> = files
-            .iter()
-            .zip(sweeps)
-            .zip(&model)
-            .zip(&result.cost_per_pose)
-            .map(|(((f, s), g), v)| {
-                let (mag, phase) = MatrixLines::of(g).bode();
-                serde_json::json!({
-                    "sweep": s, "pose": f.pose, "v_db": v,
-                    "freq_hz": f.freq_hz, "magnitude_db": mag, "phase_deg": phase,
-                })
-            })
-            .collect();
-        let good = result.good.len();
-        let doc = serde_json::json!({
-            "robot": self.cfg.name,
-            "sweeps": sweeps,
-            "starts": result.starts.iter().map(|s| s.cost).collect::<Vec<_>>(),
-            "good_starts": good,
-            "cost_db": result.cost,
-            "cost_per_pose_db": result.cost_per_pose,
-            "form": "sampled",
-            "parameters": params,
-            "models": models,
-        });
+        let (doc, summary) = identify_files(
+            &self.robot,
+            &self.cfg.name,
+            &files,
+            starts,
+            self.cfg.cycle_hz,
+        )?;
         write_json(&self.dir.join(id).join(IDENTIFICATION_JSON), &doc)?;
-        Ok(format!(
-            "{} parameters from {} poses; V {:.4} dB; {good} of {starts} starts reached the best cost",
-            names.len(),
-            sweeps.len(),
-            result.cost
-        ))
+        Ok(summary)
     }
-}
-
-/// Writes `value` as JSON to `path` atomically.
-fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<(), String> {
-    let text = serde_json::to_vec(value).map_err(|e| e.to_string())?;
-    flexid_files::recording::write_bytes_atomic(path, &text)
-        .map_err(|e| format!("{}: {e}", path.display()))
 }

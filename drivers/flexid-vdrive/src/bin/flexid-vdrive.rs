@@ -3,7 +3,12 @@
 //! ```text
 //! flexid-vdrive --bus udp[:GROUP[:PORT]] | socketcan:IFACE [--node 5] [--plant P.toml]
 //!               [--clock lockstep|realtime] [--bitrate 1000000] [--fifo-priority 1..=99]
+//! flexid-vdrive --robot [FLEX.toml] [--pose NAME] [--first-node 2] [--deviation 0.3] ...
 //! ```
+//!
+//! With `--robot`, a whole robot: one drive per axis (nodes `--first-node ..`), all in front
+//! of one coupled plant, the robot's flexible model linearised at the pose (see
+//! `flexid_vdrive::robot`); without a file, the reference arm `robots/flexid-arm6`.
 //!
 //! The drive answers every SYNC from its receive path (it has no cycle timer of its own);
 //! `--fifo-priority` serves the bus under `SCHED_FIFO` with locked memory, as a drive's
@@ -20,7 +25,10 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use clap::{Parser, ValueEnum};
 use flexid_can::timing::Paced;
 use flexid_can::{BusSpec, CanBus, UdpMulticastBus};
-use flexid_vdrive::{plant_drive, ClockMode, DrivePlant, Runner};
+use flexid_vdrive::robot::{self, CoupledAxis};
+use flexid_vdrive::{
+    plant_drive, BusNode, ClockMode, DrivePlant, DriveSet, Physics, Runner, VirtualDrive,
+};
 
 static STOP: AtomicBool = AtomicBool::new(false);
 
@@ -68,13 +76,97 @@ struct Cli {
     /// the plant file's `[drive] sync_loss_cycles` (default 3).
     #[arg(long)]
     sync_loss_cycles: Option<u16>,
+    /// Simulate a whole robot from its flexibility file (TOML naming its URDF); without a
+    /// value, the embedded reference arm. `--plant` and `--node` do not apply.
+    #[arg(long, num_args = 0..=1, default_missing_value = "reference")]
+    robot: Option<String>,
+    /// The robot's pose: a pose name of its file (default: the first one).
+    #[arg(long, requires = "robot")]
+    pose: Option<String>,
+    /// Node id of the robot's axis 1 (axis i is first-node + i - 1).
+    #[arg(long, default_value_t = 2, requires = "robot")]
+    first_node: u8,
+    /// The simulated robot's springs deviate from the file's by up to this fraction, each
+    /// by its own factor seeded by `--seed` (0: the file's values).
+    #[arg(long, default_value_t = 0.0, requires = "robot")]
+    deviation: f64,
+}
+
+/// What this process simulates.
+enum Simulated {
+    /// One drive of a plant file.
+    Axis(VirtualDrive<Box<dyn Physics>>),
+    /// A robot's drives, one coupled plant.
+    Robot {
+        set: DriveSet<CoupledAxis>,
+        what: String,
+    },
+}
+
+/// The drive(s) of the command line; exit code 2 and a message on stderr when they
+/// cannot be built.
+fn build(cli: &Cli, plant: &DrivePlant, clock: ClockMode) -> Result<Simulated, ExitCode> {
+    let fail = |e: String| {
+        eprintln!("flexid-vdrive: {e}");
+        ExitCode::from(2)
+    };
+    let Some(which) = &cli.robot else {
+        return plant_drive(plant, clock, cli.seed)
+            .map(Simulated::Axis)
+            .map_err(|e| fail(e.to_string()));
+    };
+    let path = (which != "reference").then(|| std::path::Path::new(which));
+    let robot = robot::load_robot(path).map_err(fail)?;
+    let (name, q_deg) = match &cli.pose {
+        None => robot
+            .poses
+            .first()
+            .map(|p| (p.name.clone(), p.q_deg.clone()))
+            .ok_or_else(|| fail(format!("robot {}: its file has no pose", robot.name)))?,
+        Some(n) => robot
+            .poses
+            .iter()
+            .find(|p| &p.name == n)
+            .map(|p| (p.name.clone(), p.q_deg.clone()))
+            .ok_or_else(|| {
+                let names: Vec<_> = robot.poses.iter().map(|p| p.name.as_str()).collect();
+                fail(format!(
+                    "--pose {n}: the robot's file has {}",
+                    names.join(", ")
+                ))
+            })?,
+    };
+    if !(cli.deviation.is_finite() && (0.0..=0.9).contains(&cli.deviation)) {
+        return Err(fail(format!(
+            "--deviation {}: must be 0..=0.9",
+            cli.deviation
+        )));
+    }
+    let theta = robot.nominal.deviated(cli.deviation, cli.seed);
+    let q: Vec<f64> = q_deg.iter().map(|d| d.to_radians()).collect();
+    let opts = robot::RobotDriveOptions {
+        first_node: cli.first_node,
+        clock,
+        ..robot::RobotDriveOptions::default()
+    };
+    let (set, _plant) =
+        robot::robot_drives(&robot, &q, &theta, &opts).map_err(|e| fail(e.to_string()))?;
+    let ids = set.node_ids();
+    Ok(Simulated::Robot {
+        what: format!(
+            "nodes {}-{} (robot {} at pose {name})",
+            ids.first().copied().unwrap_or(0),
+            ids.last().copied().unwrap_or(0),
+            robot.name
+        ),
+        set,
+    })
 }
 
 fn serve<B: CanBus>(
     bus: B,
-    plant: &DrivePlant,
+    sim: Simulated,
     clock: ClockMode,
-    seed: u64,
     fifo_priority: Option<u8>,
 ) -> ExitCode {
     if let Some(p) = fifo_priority {
@@ -83,20 +175,21 @@ fn serve<B: CanBus>(
             eprintln!("flexid-vdrive: {r}");
         }
     }
-    let drive = match plant_drive(plant, clock, seed) {
-        Ok(d) => d,
-        Err(e) => {
-            eprintln!("flexid-vdrive: {e}");
-            return ExitCode::from(2);
+    match sim {
+        Simulated::Axis(drive) => {
+            let what = format!("node {}", drive.config().node_id);
+            run(Runner::new(bus, drive), &what, clock)
         }
-    };
-    let node = drive.config().node_id;
-    let mut runner = Runner::new(bus, drive);
+        Simulated::Robot { set, what } => run(Runner::new(bus, set), &what, clock),
+    }
+}
+
+fn run<B: CanBus, N: BusNode>(mut runner: Runner<B, N>, what: &str, clock: ClockMode) -> ExitCode {
     runner.power_on();
-    println!("flexid-vdrive: node {node} ready on {}", runner.interface());
+    println!("flexid-vdrive: {what} ready on {}", runner.interface());
     use std::io::Write;
     let _ = std::io::stdout().flush();
-    tracing::info!(node, bus = runner.interface(), ?clock, "ready");
+    tracing::info!(what, bus = runner.interface(), ?clock, "ready");
     match runner.serve(&STOP) {
         Ok(()) => {
             let s = runner.drive().stats();
@@ -163,17 +256,15 @@ fn main() -> ExitCode {
         Clock::Lockstep => ClockMode::LockStep,
         Clock::Realtime => ClockMode::RealTime,
     };
+    let sim = match build(&cli, &plant, clock) {
+        Ok(s) => s,
+        Err(code) => return code,
+    };
     match spec {
         BusSpec::Udp(cfg) => match UdpMulticastBus::open(cfg) {
             Ok(bus) => match cli.bitrate {
-                Some(b) if b > 0 => serve(
-                    Paced::new(bus, b),
-                    &plant,
-                    clock,
-                    cli.seed,
-                    cli.fifo_priority,
-                ),
-                _ => serve(bus, &plant, clock, cli.seed, cli.fifo_priority),
+                Some(b) if b > 0 => serve(Paced::new(bus, b), sim, clock, cli.fifo_priority),
+                _ => serve(bus, sim, clock, cli.fifo_priority),
             },
             Err(e) => {
                 eprintln!("flexid-vdrive: {e}");
@@ -186,7 +277,7 @@ fn main() -> ExitCode {
                 if cli.bitrate.is_some() {
                     tracing::info!("--bitrate ignored on SocketCAN (set it with ip link)");
                 }
-                serve(bus, &plant, clock, cli.seed, cli.fifo_priority)
+                serve(bus, sim, clock, cli.fifo_priority)
             }
             Err(e) => {
                 eprintln!("flexid-vdrive: {e}");

@@ -16,6 +16,7 @@ mod fit_progress;
 pub mod plant;
 mod results;
 mod robot;
+mod robot_bus;
 pub mod sweep;
 mod sweep_args;
 #[cfg(test)]
@@ -57,8 +58,10 @@ pub enum Command {
     /// unmodelled effect, and how far it shrinks with it (one recording per amplitude).
     Diagnose(diagnose::DiagnoseArgs),
     /// Identify the gear and bearing flexibilities of a multi-axis robot (URDF plus
-    /// flexibility file) from orthogonal-multisine FRF matrices at several poses; the robot
-    /// is simulated. Prints the parameters, the cost per pose; writes the Bode matrix.
+    /// flexibility file) from orthogonal-multisine FRF matrices at several poses: simulated,
+    /// or measured pose by pose through its drives on a bus (`--bus`, `--pose`, `--out`),
+    /// then identified from those measurements (`--from`). Prints the parameters, the cost
+    /// per pose; writes the Bode matrix.
     Robot(robot::RobotArgs),
 }
 

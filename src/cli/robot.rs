@@ -6,6 +6,10 @@
 //! the file's values scaled by `--start-scale` (the paper's multi-start search), and the
 //! model is checked on the file's validation poses. Without `--robot`, the reference arm
 //! shipped in `robots/`.
+//!
+//! With `--bus SPEC --pose NAME --out DIR`, one pose is measured through the robot's
+//! drives instead (`flexid-vdrive --robot` simulates them on a bus); with `--from DIR ...`
+//! the flexibilities are identified from such measurements (`cli::robot_bus`).
 
 use super::CliError;
 use crate::plot::{bode_matrix_svg, BodeMatrix};
@@ -44,6 +48,32 @@ pub struct RobotArgs {
     /// Write the identified parameters, their uncertainties and the cost per pose here.
     #[arg(long)]
     pub json: Option<PathBuf>,
+    /// Measure the robot through its drives on this bus instead of simulating it
+    /// (`udp[:GROUP[:PORT]]` or `socketcan:IFACE`): one pose (`--pose`), written to `--out`.
+    #[arg(long, requires_all = ["pose", "out"], conflicts_with = "from")]
+    pub bus: Option<String>,
+    /// The pose the robot stands at (a pose name of its file).
+    #[arg(long, requires = "bus")]
+    pub pose: Option<String>,
+    /// Directory for the measured pose (`frf_matrix.json`, `bode_matrix.svg`).
+    #[arg(long, requires = "bus")]
+    pub out: Option<PathBuf>,
+    /// Node id of axis 1 on the bus (axis i is first-node + i - 1).
+    #[arg(long, default_value_t = 2)]
+    pub first_node: u8,
+    /// Averaged periods per experiment (the bus measurement), after `--transient-periods`.
+    #[arg(long, default_value_t = 4)]
+    pub periods: usize,
+    #[arg(long, default_value_t = 1)]
+    pub transient_periods: usize,
+    /// Pacing of the bus measurement: `realtime` for drives that keep their own time
+    /// (real drives), `lockstep` for a simulated robot in lock-step.
+    #[arg(long, default_value = "realtime", value_parser = ["realtime", "lockstep"])]
+    pub clock: String,
+    /// Identify from these measured poses (directories written by `--bus ... --out`)
+    /// instead of simulating.
+    #[arg(long, num_args = 1..)]
+    pub from: Vec<PathBuf>,
 }
 
 pub fn robot(a: &RobotArgs) -> Result<(), CliError> {
@@ -54,6 +84,31 @@ pub fn robot(a: &RobotArgs) -> Result<(), CliError> {
         )));
     }
     let robot = load(a)?;
+    if let Some(bus) = &a.bus {
+        if !(1..=64).contains(&a.periods) || a.transient_periods > 16 {
+            return Err(CliError::input(
+                "--periods must be 1..=64 and --transient-periods 0..=16",
+            ));
+        }
+        return super::robot_bus::measure_on_bus(&super::robot_bus::BusMeasurement {
+            robot: &robot,
+            bus,
+            pose: a.pose.as_deref().unwrap_or_default(),
+            out: a.out.as_deref().unwrap_or(std::path::Path::new(".")),
+            first_node: a.first_node,
+            cycle_hz: a.fs,
+            periods: a.periods,
+            transient_periods: a.transient_periods,
+            pacing: if a.clock == "lockstep" {
+                flexid_sweep::Pacing::Lockstep
+            } else {
+                flexid_sweep::Pacing::Realtime
+            },
+        });
+    }
+    if !a.from.is_empty() {
+        return super::robot_bus::identify_from(&robot, &a.from, a.starts, a.json.as_deref());
+    }
     let truth = robot.nominal.clone();
     let start = Flexibilities::new(
         truth

@@ -18,14 +18,14 @@ use std::time::{Duration, Instant};
 pub use super::sweep_args::{ClockArg, ExcitationArg, SweepArgs};
 
 /// Set by SIGINT/SIGTERM during a sweep.
-static STOP: AtomicBool = AtomicBool::new(false);
+pub(super) static STOP: AtomicBool = AtomicBool::new(false);
 
 #[cfg(unix)]
 extern "C" fn on_signal(_: libc::c_int) {
     STOP.store(true, Ordering::Relaxed);
 }
 
-fn install_signal_handlers() {
+pub(super) fn install_signal_handlers() {
     STOP.store(false, Ordering::Relaxed);
     #[cfg(unix)]
     // SAFETY: the handler only stores to an atomic (async-signal-safe).
@@ -37,7 +37,7 @@ fn install_signal_handlers() {
 
 /// Back to the default SIGINT/SIGTERM behaviour once the drive is off (Ctrl-C during
 /// the identification ends the program).
-fn restore_signal_handlers() {
+pub(super) fn restore_signal_handlers() {
     #[cfg(unix)]
     // SAFETY: resetting to the default disposition.
     unsafe {

@@ -20,6 +20,9 @@ const LAYERS: &[(&str, &str, &[&str])] = &[
     ("flexid-files", "crates/flexid-files", &["flexid-core"]),
     ("flexid-can", "drivers/flexid-can", &[]),
     ("flexid-canopen", "drivers/flexid-canopen", &["flexid-can"]),
+    // EtherCAT (issue 18): the emulated ESC segment and the ethercrab link; nothing of the
+    // project yet (flexid-core only where a frame comes to carry its types).
+    ("flexid-ecat", "drivers/flexid-ecat", &["flexid-core"]),
     (
         "flexid-vdrive",
         "drivers/flexid-vdrive",

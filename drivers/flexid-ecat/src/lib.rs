@@ -1,0 +1,30 @@
+//! EtherCAT for flexid (issue 18), first part: a sans-I/O emulation of EtherCAT SubDevices
+//! and its in-process link to ethercrab's MainDevice.
+//!
+//! * [`frame`]: EtherCAT frames (Ethernet header 0x88A4, EtherCAT header, the PDU chain) and
+//!   the commands with their addressing and working-counter semantics.
+//! * [`esc`]: one emulated SubDevice: ESC memory and registers ([`esc::registers`]), the SII
+//!   EEPROM and its interface ([`esc::sii`]), the AL state machine with status codes
+//!   ([`esc::al`]), sync managers and FMMUs, the CoE SDO server ([`esc::mailbox`]) over an
+//!   object dictionary with the PDO mapping rules ([`esc::dictionary`]), distributed clocks
+//!   and SYNC0 ([`esc::dc`]).
+//! * [`Segment`]: SubDevices in ring order processing a frame in place, as a line of ESCs.
+//! * [`inprocess`]: drives a [`Segment`] from ethercrab's `PduTx`/`PduRx` (no socket, no
+//!   root): the always-run test tier.
+//!
+//! Not emulated yet: segmented SDO transfers, complete access, SDO information, emergencies,
+//! the 3-buffer exchange (one buffer), bit-granular FMMUs, the DC drift control loop (clocks
+//! are exact), watchdogs, EoE/FoE/SoE, ports 2 and 3 (line topology only), alias addressing.
+//!
+//! ethercrab's SDO download is expedited only (at most 4 bytes): PDO mappings are written
+//! entry by entry (sub-index 0 to 0, the entries, sub-index 0 to the count), which the
+//! emulated dictionary enforces as CiA 301 does.
+
+pub mod esc;
+pub mod frame;
+pub mod inprocess;
+mod le;
+pub mod segment;
+
+pub use esc::{SubDevice, SubDeviceConfig};
+pub use segment::{FrameReport, Segment};

@@ -1,0 +1,211 @@
+//! A segment: emulated SubDevices in ring order, processing a frame in place exactly as a
+//! line of real ESCs does. Each SubDevice handles every PDU (addressing, data, working
+//! counter) and passes the frame on; the last one loops it back, and the frame returns with
+//! the locally administered bit set in its source MAC.
+//!
+//! Time: the segment has a clock (ns) the caller sets or advances. A frame reaches
+//! SubDevice `i` after `i` hops of [`Segment::hop_ns`] and returns through its port 1 after
+//! passing the SubDevices behind it; the DC latches see these times in each SubDevice's
+//! local clock.
+
+use crate::esc::SubDevice;
+use crate::frame::{mark_forwarded, FrameError, FrameLayout};
+
+/// SubDevices in ring order and the segment clock.
+#[derive(Debug, Clone, Default)]
+pub struct Segment {
+    devices: Vec<SubDevice>,
+    time_ns: u64,
+    /// Delay from one SubDevice's port 0 to the next one's (forwarding and cable), ns.
+    pub hop_ns: u64,
+    frames: u64,
+}
+
+/// What one frame did.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct FrameReport {
+    /// PDUs in the frame.
+    pub pdus: usize,
+    /// SubDevices the frame passed.
+    pub subdevices: usize,
+}
+
+impl Segment {
+    /// An empty segment; hops of 1 us.
+    pub fn new() -> Self {
+        Self {
+            devices: Vec::new(),
+            time_ns: 0,
+            hop_ns: 1_000,
+            frames: 0,
+        }
+    }
+
+    /// Appends a SubDevice at the end of the line.
+    pub fn push(&mut self, mut device: SubDevice) {
+        if let Some(last) = self.devices.last_mut() {
+            last.set_port1_linked(true);
+        }
+        device.set_port1_linked(false);
+        self.devices.push(device);
+    }
+
+    pub fn len(&self) -> usize {
+        self.devices.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.devices.is_empty()
+    }
+
+    pub fn subdevice(&self, position: usize) -> Option<&SubDevice> {
+        self.devices.get(position)
+    }
+
+    pub fn subdevice_mut(&mut self, position: usize) -> Option<&mut SubDevice> {
+        self.devices.get_mut(position)
+    }
+
+    pub fn subdevices(&self) -> &[SubDevice] {
+        &self.devices
+    }
+
+    /// Segment time, ns.
+    pub fn time_ns(&self) -> u64 {
+        self.time_ns
+    }
+
+    /// Sets segment time (ns); it never goes back.
+    pub fn set_time_ns(&mut self, ns: u64) {
+        self.time_ns = self.time_ns.max(ns);
+    }
+
+    /// Frames processed.
+    pub fn frames(&self) -> u64 {
+        self.frames
+    }
+
+    /// Passes `frame` (a whole Ethernet frame) through every SubDevice in order, in place.
+    /// A frame that is not a valid EtherCAT frame is left untouched (a real segment would
+    /// drop it).
+    pub fn process(&mut self, frame: &mut [u8]) -> Result<FrameReport, FrameError> {
+        let layout = FrameLayout::parse(frame)?;
+        let n = self.devices.len() as u64;
+        for (i, device) in self.devices.iter_mut().enumerate() {
+            let i = i as u64;
+            let arrival = self.time_ns + i * self.hop_ns;
+            // Out to the end of the line and back: the frame returns through port 1 after
+            // 2 (n - 1 - i) hops.
+            let back = (i + 1 < n).then(|| arrival + 2 * (n - 1 - i) * self.hop_ns);
+            device.begin_frame(arrival, back);
+            layout.for_each_pdu(frame, |pdu| device.process_pdu(pdu));
+            device.end_frame();
+        }
+        mark_forwarded(frame);
+        self.frames += 1;
+        Ok(FrameReport {
+            pdus: layout.pdus,
+            subdevices: self.devices.len(),
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::esc::sii::Identity;
+    use crate::esc::SubDeviceConfig;
+    use crate::frame::tests::{build, pdu};
+    use crate::frame::Command;
+
+    fn line(n: usize) -> Segment {
+        let mut s = Segment::new();
+        for i in 0..n {
+            let id = Identity {
+                vendor_id: 0x0A1D,
+                product_code: 0x10 + i as u32,
+                revision: 1,
+                serial: i as u32,
+            };
+            let config = SubDeviceConfig::servo_axis(id, &format!("AX{i}"));
+            s.push(SubDevice::new(config).expect("valid SII"));
+        }
+        s
+    }
+
+    #[test]
+    fn broadcast_read_counts_every_subdevice_and_marks_the_source_mac() {
+        let mut s = line(3);
+        let mut f = build(&[(Command::Brd, 0, &[0, 0])]);
+        s.process(&mut f).expect("valid frame");
+        // ESC type 0x11 ORed over three SubDevices; one count each.
+        assert_eq!(pdu(&mut f, 0), (vec![0x11, 0x00], 3));
+        assert_eq!(f[6], 0x12);
+    }
+
+    #[test]
+    fn position_and_station_addressing_reach_one_subdevice() {
+        let mut s = line(3);
+        // APWR position 1 (address field -1) writes station address 0x1001.
+        let mut f = build(&[(Command::Apwr, 0x0010_FFFF, &[0x01, 0x10])]);
+        s.process(&mut f).expect("valid frame");
+        assert_eq!(pdu(&mut f, 0).1, 1);
+        assert_eq!(s.subdevice(1).map(SubDevice::station_address), Some(0x1001));
+        assert_eq!(s.subdevice(0).map(SubDevice::station_address), Some(0));
+        // FPRD of its product code through the EEPROM interface: request word 0x0A, read.
+        let mut f = build(&[
+            (
+                Command::Fpwr,
+                0x0502_1001,
+                &[0x00, 0x01, 0x0A, 0x00, 0x00, 0x00],
+            ),
+            (Command::Fprd, 0x0508_1001, &[0; 4]),
+            (Command::Fprd, 0x0508_1002, &[0; 4]),
+        ]);
+        s.process(&mut f).expect("valid frame");
+        assert_eq!(pdu(&mut f, 0).1, 1);
+        assert_eq!(pdu(&mut f, 1), (0x11u32.to_le_bytes().to_vec(), 1));
+        assert_eq!(pdu(&mut f, 2), (vec![0; 4], 0));
+    }
+
+    #[test]
+    fn read_write_and_read_multiple_write_count_as_specified() {
+        let mut s = line(2);
+        let mut f = build(&[(Command::Apwr, 0x0010_0000, &[0x00, 0x10])]);
+        s.process(&mut f).expect("valid frame");
+        // FPRW: the old value comes back, the new one is stored; read 1 + write 2.
+        let mut f = build(&[(Command::Fprw, 0x0012_1000, &[0x34, 0x12])]);
+        s.process(&mut f).expect("valid frame");
+        assert_eq!(pdu(&mut f, 0), (vec![0, 0], 3));
+        // FRMW: the addressed SubDevice reads, the other one writes.
+        let mut f = build(&[(Command::Frmw, 0x0012_1000, &[0, 0])]);
+        s.process(&mut f).expect("valid frame");
+        assert_eq!(pdu(&mut f, 0), (vec![0x34, 0x12], 2));
+        let alias = |i: usize| s.subdevice(i).map(|d| [d.memory()[0x12], d.memory()[0x13]]);
+        assert_eq!(alias(1), Some([0x34, 0x12]));
+        // Read-only registers keep their value.
+        let mut f = build(&[(Command::Bwr, 0x0000_0000, &[0xFF])]);
+        s.process(&mut f).expect("valid frame");
+        assert_eq!(pdu(&mut f, 0).1, 2);
+        assert_eq!(s.subdevice(0).map(|d| d.memory()[0]), Some(0x11));
+    }
+
+    #[test]
+    fn receive_times_follow_the_line() {
+        let mut s = line(3);
+        s.set_time_ns(5_000);
+        let mut f = build(&[(Command::Bwr, 0x0900_0000, &[0; 4])]);
+        s.process(&mut f).expect("valid frame");
+        let port = |i: usize, p: usize| {
+            s.subdevice(i)
+                .and_then(|d| crate::le::u32_at(d.memory(), 0x0900 + 4 * p))
+        };
+        // Arrival i hops after the first; back through port 1 after the devices behind.
+        assert_eq!(port(0, 0), Some(5_000));
+        assert_eq!(port(0, 1), Some(9_000));
+        assert_eq!(port(1, 0), Some(6_000));
+        assert_eq!(port(1, 1), Some(8_000));
+        assert_eq!(port(2, 0), Some(7_000));
+        assert_eq!(port(2, 1), Some(0));
+    }
+}

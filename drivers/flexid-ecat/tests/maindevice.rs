@@ -380,7 +380,7 @@ fn stepping_clock() -> u64 {
 }
 
 #[tokio::test]
-async fn init_traffic_is_byte_for_byte_what_the_subdevices_answer() {
+async fn init_traffic_returns_every_frame_marked_and_answered() {
     let recording: Recording = Arc::new(Mutex::new(Vec::new()));
     let seg = segment(2);
     let (md, _link) = start(seg.clone(), Some(stepping_clock), Some(recording.clone()));
@@ -403,4 +403,23 @@ async fn init_traffic_is_byte_for_byte_what_the_subdevices_answer() {
     let len = usize::from(u16::from_le_bytes([first[22], first[23]]) & 0x07FF);
     assert_eq!(first[26], 0x11);
     assert_eq!(u16::from_le_bytes([first[26 + len], first[27 + len]]), 2);
+}
+
+#[tokio::test]
+async fn ethercrab_writes_the_station_alias_and_its_checksum_into_the_eeprom() {
+    let seg = segment(1);
+    let (md, _link) = start(seg.clone(), None, None);
+    let mut group = md
+        .init_single_group::<MAX_SUBDEVICES, MAX_PDI>(dc_now)
+        .await
+        .expect("init");
+    for mut sd in group.iter_mut(md) {
+        sd.set_alias_address(0x0042).await.expect("alias written");
+    }
+    let seg = seg.lock().expect("segment");
+    let eeprom = seg.subdevice(0).expect("emulated").eeprom();
+    assert_eq!(eeprom[8..10], [0x42, 0x00]);
+    // ethercrab computed the checksum with its CRC; the emulator's SII CRC agrees.
+    assert_eq!(eeprom[14], flexid_ecat::esc::sii::checksum(&eeprom[..14]));
+    assert_eq!(eeprom[15], 0);
 }

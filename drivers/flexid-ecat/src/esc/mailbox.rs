@@ -163,8 +163,11 @@ fn upload(
     if (1..=4).contains(&len) {
         // Expedited: size indicated, expedited, 4 - len unused bytes.
         let command = 0x40 | 0x02 | 0x01 | (((4 - len) as u8) << 2);
+        let dst = response
+            .get_mut(SDO_HEADER_END..SDO_HEADER_END + len)
+            .ok_or(SdoAbort::OutOfMemory)?;
+        dst.copy_from_slice(value);
         write_sdo_header(response, 10, command, index, sub, counter);
-        response[SDO_HEADER_END..SDO_HEADER_END + len].copy_from_slice(value);
     } else {
         // Normal: size indicated, complete size, then the data.
         let end = SDO_HEADER_END + 4 + len;

@@ -20,11 +20,15 @@
 //! entry by entry (sub-index 0 to 0, the entries, sub-index 0 to the count), which the
 //! emulated dictionary enforces as CiA 301 does.
 
+pub mod drive;
 pub mod esc;
 pub mod frame;
 pub mod inprocess;
 mod le;
 pub mod segment;
+pub mod servo;
 
+pub use drive::{EcatConfig, EcatDrive, EcatError};
 pub use esc::{SubDevice, SubDeviceConfig};
-pub use segment::{FrameReport, Segment};
+pub use segment::{Application, FrameReport, Segment};
+pub use servo::{Servo, ServoConfig};

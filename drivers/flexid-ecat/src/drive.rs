@@ -185,19 +185,23 @@ struct Inputs {
 }
 
 impl Inputs {
+    /// The axis's input bytes in the TxPDO layout ([`INPUT_BYTES`]; missing bytes read 0).
     fn decode(raw: &[u8]) -> Self {
-        let at = |r: core::ops::Range<usize>| raw.get(r).unwrap_or(&[0, 0, 0, 0]);
-        let u16_at = |o: usize| u16::from_le_bytes([at(o..o + 2)[0], at(o..o + 2)[1]]);
-        let i32_at = |o: usize| {
-            let b = at(o..o + 4);
-            i32::from_le_bytes([b[0], b[1], b[2], b[3]])
-        };
-        Self {
-            statusword: u16_at(0),
-            position: i32_at(2),
-            velocity: i32_at(6),
-            torque: u16_at(10) as i16,
+        fn field<const N: usize>(raw: &[u8], at: usize) -> [u8; N] {
+            raw.get(at..at + N)
+                .and_then(|b| b.try_into().ok())
+                .unwrap_or([0; N])
         }
+        Self {
+            statusword: u16::from_le_bytes(field(raw, 0)),
+            position: i32::from_le_bytes(field(raw, 2)),
+            velocity: i32::from_le_bytes(field(raw, 6)),
+            torque: i16::from_le_bytes(field(raw, 10)),
+        }
+    }
+
+    fn statusword_state(&self) -> Option<State> {
+        Statusword(self.statusword).state()
     }
 }
 
@@ -523,12 +527,6 @@ impl<'md, const S: usize, const P: usize> EcatDrive<'md, S, P> {
     /// Process-data exchanges since bring-up began, the walk included.
     pub fn exchanges(&self) -> u64 {
         self.exchanges
-    }
-}
-
-impl Inputs {
-    fn statusword_state(&self) -> Option<State> {
-        Statusword(self.statusword).state()
     }
 }
 

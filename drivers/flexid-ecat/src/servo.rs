@@ -292,3 +292,89 @@ impl<P: Physics + std::fmt::Debug> Application for Servo<P> {
         self.stats.cycles += 1;
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use flexid_core::model::Chain;
+    use flexid_core::plant::physics::LinearChain;
+
+    fn servo() -> (SubDevice, Servo<LinearChain>) {
+        let chain = Chain {
+            inertia_kgm2: vec![1e-3, 2e-3],
+            stiffness_nm_per_rad: vec![500.0],
+            damping_nms_per_rad: vec![0.01],
+        };
+        let config = ServoConfig::default();
+        let identity = Identity {
+            vendor_id: 1,
+            product_code: 2,
+            revision: 3,
+            serial: 4,
+        };
+        let device = SubDevice::new(config.subdevice_config(identity, "S")).expect("SII");
+        let physics = LinearChain::new(&chain, 4000.0).expect("chain");
+        (device, Servo::new(config, physics))
+    }
+
+    fn exchange(d: &mut SubDevice, s: &mut Servo<LinearChain>, cw: u16, permille: i16) -> u16 {
+        s.latch_inputs(d);
+        let sw = d
+            .dictionary()
+            .get(object::STATUSWORD, 0)
+            .and_then(|b| b.try_into().ok())
+            .map_or(0, u16::from_le_bytes);
+        let od = d.dictionary_mut();
+        od.set(object::CONTROLWORD, 0, &cw.to_le_bytes())
+            .expect("cw");
+        od.set(object::TARGET_TORQUE, 0, &permille.to_le_bytes())
+            .expect("torque");
+        s.apply_outputs(d);
+        sw
+    }
+
+    #[test]
+    fn walks_to_operation_enabled_and_applies_the_clamped_cst_torque() {
+        let (mut d, mut s) = servo();
+        d.dictionary_mut()
+            .set(object::MODES, 0, &[MODE_CST as u8])
+            .expect("mode");
+        // Switch on disabled, voltage off, remote.
+        assert_eq!(exchange(&mut d, &mut s, 0x0006, 500), 0x0240);
+        assert_eq!(s.state(), State::ReadyToSwitchOn);
+        // Not enabled yet: no torque, whatever the target.
+        assert_eq!(s.applied_torque_nm(), 0.0);
+        assert_eq!(exchange(&mut d, &mut s, 0x000F, 500), 0x0231);
+        assert_eq!(s.state(), State::OperationEnabled);
+        assert_eq!(s.applied_torque_nm(), 0.5);
+        // Operation enabled, voltage, remote, target followed.
+        assert_eq!(exchange(&mut d, &mut s, 0x000F, 5000), 0x1237);
+        assert_eq!(s.applied_torque_nm(), 3.0, "clamped to the peak torque");
+        // The clamp shows as internal limit active.
+        assert_eq!(exchange(&mut d, &mut s, 0x000F, 0), 0x1A37);
+        assert_eq!(s.stats().cycles, 4);
+        // 0x6076 in mN m, 0x6072 in per mille, 0x608F:1 the encoder.
+        let od = d.dictionary();
+        assert_eq!(
+            od.get(object::RATED_TORQUE, 0),
+            Some(&1000u32.to_le_bytes()[..])
+        );
+        assert_eq!(
+            od.get(object::MAX_TORQUE, 0),
+            Some(&3000u16.to_le_bytes()[..])
+        );
+        assert_eq!(
+            od.get(object::ENCODER_RESOLUTION, 1),
+            Some(&(1u32 << 20).to_le_bytes()[..])
+        );
+    }
+
+    #[test]
+    fn a_mode_other_than_cst_applies_no_torque() {
+        let (mut d, mut s) = servo();
+        exchange(&mut d, &mut s, 0x0006, 0);
+        exchange(&mut d, &mut s, 0x000F, 400);
+        assert_eq!(s.state(), State::OperationEnabled);
+        assert_eq!(s.applied_torque_nm(), 0.0, "mode 0: no torque");
+    }
+}

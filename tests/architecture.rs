@@ -20,9 +20,15 @@ const LAYERS: &[(&str, &str, &[&str])] = &[
     ("flexid-files", "crates/flexid-files", &["flexid-core"]),
     ("flexid-can", "drivers/flexid-can", &[]),
     ("flexid-canopen", "drivers/flexid-canopen", &["flexid-can"]),
-    // EtherCAT (issue 18): the emulated ESC segment and the ethercrab link; nothing of the
-    // project yet (flexid-core only where a frame comes to carry its types).
-    ("flexid-ecat", "drivers/flexid-ecat", &["flexid-core"]),
+    // EtherCAT (issue 18): the emulated ESC segment, the ethercrab link, the simulated servo
+    // behind the ESC (flexid-core's plant physics, flexid-canopen's CiA 402 device state
+    // machine) and the EtherCAT transport (flexid-canopen's CyclicDrive trait and scaling).
+    // Not flexid-vdrive: the shared CiA 402 pieces already sit in flexid-canopen.
+    (
+        "flexid-ecat",
+        "drivers/flexid-ecat",
+        &["flexid-core", "flexid-can", "flexid-canopen"],
+    ),
     (
         "flexid-vdrive",
         "drivers/flexid-vdrive",

@@ -1,5 +1,6 @@
-//! EtherCAT for flexid (issue 18), first part: a sans-I/O emulation of EtherCAT SubDevices
-//! and its in-process link to ethercrab's MainDevice.
+//! EtherCAT for flexid (issue 18): a sans-I/O emulation of EtherCAT SubDevices with a
+//! simulated CiA 402 servo behind them, its in-process link to ethercrab's MainDevice, and the
+//! EtherCAT transport of the sweep.
 //!
 //! * [`frame`]: EtherCAT frames (Ethernet header 0x88A4, EtherCAT header, the PDU chain) and
 //!   the commands with their addressing and working-counter semantics.
@@ -8,7 +9,12 @@
 //!   ([`esc::al`]), sync managers and FMMUs, the CoE SDO server ([`esc::mailbox`]) over an
 //!   object dictionary with the PDO mapping rules ([`esc::dictionary`]), distributed clocks
 //!   and SYNC0 ([`esc::dc`]).
-//! * [`Segment`]: SubDevices in ring order processing a frame in place, as a line of ESCs.
+//! * [`Segment`]: SubDevices in ring order processing a frame in place, as a line of ESCs,
+//!   and the [`Application`] behind each one, run around every process-data frame.
+//! * [`servo`]: the simulated CiA 402 servo (cyclic synchronous torque) in front of the
+//!   core's plant physics, the same drive as flexid-vdrive's on CAN.
+//! * [`drive`]: [`EcatDrive`], a CiA 402 axis in CST on an ethercrab group in OP, the
+//!   fieldbus-independent `flexid_canopen::CyclicDrive` the sweep loop runs over.
 //! * [`inprocess`]: drives a [`Segment`] from ethercrab's `PduTx`/`PduRx` (no socket, no
 //!   root): the always-run test tier.
 //!
@@ -20,11 +26,15 @@
 //! entry by entry (sub-index 0 to 0, the entries, sub-index 0 to the count), which the
 //! emulated dictionary enforces as CiA 301 does.
 
+pub mod drive;
 pub mod esc;
 pub mod frame;
 pub mod inprocess;
 mod le;
 pub mod segment;
+pub mod servo;
 
+pub use drive::{EcatConfig, EcatDrive, EcatError};
 pub use esc::{SubDevice, SubDeviceConfig};
-pub use segment::{FrameReport, Segment};
+pub use segment::{Application, FrameReport, Segment};
+pub use servo::{Servo, ServoConfig};

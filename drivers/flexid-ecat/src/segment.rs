@@ -7,14 +7,39 @@
 //! SubDevice `i` after `i` hops of [`Segment::hop_ns`] and returns through its port 1 after
 //! passing the SubDevices behind it; the DC latches see these times in each SubDevice's
 //! local clock.
+//!
+//! The application behind a SubDevice (a drive, [`crate::servo`]) is an [`Application`]
+//! the segment calls around every frame that carries process data (a logical command):
+//! [`Application::latch_inputs`] as the frame arrives, before the ESC copies the mapped
+//! inputs into its buffer, and [`Application::apply_outputs`] after the frame has passed and
+//! the outputs reached the dictionary. This is the lock-step clock: one process-data
+//! exchange is one drive cycle (the SYNC0-driven clock of the real-time tier is not built
+//! yet).
 
+use crate::esc::al::AlState;
 use crate::esc::SubDevice;
-use crate::frame::{mark_forwarded, FrameError, FrameLayout};
+use crate::frame::{mark_forwarded, Addressing, FrameError, FrameLayout};
+
+/// The application behind a SubDevice, run in lock-step with the process-data exchange.
+///
+/// Timing of a real drive with "input latch before the frame, outputs applied after it"
+/// (SYNC0 shifted to the frame): the inputs the frame carries are sampled just before it
+/// passes, its outputs act just after.
+pub trait Application: Send + std::fmt::Debug {
+    /// A process-data frame reaches the SubDevice (SAFE-OP or OP): sample and write the
+    /// input objects into `device`'s dictionary; the ESC maps them into this frame.
+    fn latch_inputs(&mut self, device: &mut SubDevice);
+    /// The process-data frame has passed (OP): the output objects are in `device`'s
+    /// dictionary; act on them for one cycle.
+    fn apply_outputs(&mut self, device: &mut SubDevice);
+}
 
 /// SubDevices in ring order and the segment clock.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Default)]
 pub struct Segment {
     devices: Vec<SubDevice>,
+    /// The application behind each SubDevice (same positions as `devices`).
+    applications: Vec<Option<Box<dyn Application>>>,
     time_ns: u64,
     /// Delay from one SubDevice's port 0 to the next one's (forwarding and cable), ns.
     pub hop_ns: u64,
@@ -35,6 +60,7 @@ impl Segment {
     pub fn new() -> Self {
         Self {
             devices: Vec::new(),
+            applications: Vec::new(),
             time_ns: 0,
             hop_ns: 1_000,
             frames: 0,
@@ -48,6 +74,34 @@ impl Segment {
         }
         device.set_port1_linked(false);
         self.devices.push(device);
+        self.applications.push(None);
+    }
+
+    /// Appends a SubDevice with the application behind it.
+    pub fn push_with(&mut self, device: SubDevice, application: Box<dyn Application>) {
+        self.push(device);
+        if let Some(slot) = self.applications.last_mut() {
+            *slot = Some(application);
+        }
+    }
+
+    /// Takes the SubDevice at `position` off the line (a cable pulled, a SubDevice lost):
+    /// the ones behind it move up, frames no longer reach it.
+    pub fn remove(&mut self, position: usize) -> Option<SubDevice> {
+        if position >= self.devices.len() {
+            return None;
+        }
+        self.applications.remove(position);
+        let device = self.devices.remove(position);
+        if let Some(last) = self.devices.last_mut() {
+            last.set_port1_linked(false);
+        }
+        Some(device)
+    }
+
+    /// The application behind the SubDevice at `position`.
+    pub fn application(&self, position: usize) -> Option<&dyn Application> {
+        self.applications.get(position)?.as_deref()
     }
 
     pub fn len(&self) -> usize {
@@ -90,16 +144,36 @@ impl Segment {
     /// drop it).
     pub fn process(&mut self, frame: &mut [u8]) -> Result<FrameReport, FrameError> {
         let layout = FrameLayout::parse(frame)?;
+        let mut process_data = false;
+        layout.for_each_pdu(frame, |pdu| {
+            process_data |= pdu.command.addressing() == Addressing::Logical;
+        });
         let n = self.devices.len() as u64;
-        for (i, device) in self.devices.iter_mut().enumerate() {
+        for (i, (device, application)) in self
+            .devices
+            .iter_mut()
+            .zip(self.applications.iter_mut())
+            .enumerate()
+        {
             let i = i as u64;
             let arrival = self.time_ns + i * self.hop_ns;
             // Out to the end of the line and back: the frame returns through port 1 after
             // 2 (n - 1 - i) hops.
             let back = (i + 1 < n).then(|| arrival + 2 * (n - 1 - i) * self.hop_ns);
+            let mut application = application.as_deref_mut().filter(|_| process_data);
+            if let Some(app) = &mut application {
+                if device.al_state() >= AlState::SafeOp {
+                    app.latch_inputs(device);
+                }
+            }
             device.begin_frame(arrival, back);
             layout.for_each_pdu(frame, |pdu| device.process_pdu(pdu));
             device.end_frame();
+            if let Some(app) = &mut application {
+                if device.al_state() == AlState::Op {
+                    app.apply_outputs(device);
+                }
+            }
         }
         mark_forwarded(frame);
         self.frames += 1;

@@ -207,3 +207,47 @@ fn the_18_dof_model_is_identified_from_two_poses_and_holds_on_twelve() {
         );
     }
 }
+
+/// The benchmark's 60-start identification (`benches/manipulator_identify.rs`: the two
+/// identification poses above, inverse-variance weights, the continuous form) on one
+/// thread: how many starts reach the best minimum, the evaluations and the time. A
+/// measurement, not a check (`cargo test --release -p flexid-core --test
+/// manipulator_identification -- --ignored --nocapture`).
+#[test]
+#[ignore]
+fn sixty_starts() {
+    let r = reference_robot();
+    let truth = truth(&r);
+    let id = measured(&r, &truth, PoseRole::Identification);
+    let poses: Vec<_> = id.iter().map(|(_, p, _)| p.clone()).collect();
+    let meas: Vec<_> = id.iter().map(|(_, _, m)| m.clone()).collect();
+    let cost = Cost::new(
+        &meas,
+        CostSpec {
+            weighting: Weighting::InverseVariance,
+            ..CostSpec::default()
+        },
+    )
+    .unwrap();
+    let t0 = std::time::Instant::now();
+    let result = identify(
+        &poses,
+        &cost,
+        &r.nominal,
+        &IdentifyOptions {
+            threads: 1,
+            ..IdentifyOptions::default()
+        },
+    )
+    .unwrap();
+    let evaluations: usize = result.starts.iter().map(|s| s.evaluations).sum();
+    eprintln!(
+        "60 starts: {:.2} s, best V {:.9}, {} good, {evaluations} evaluations",
+        t0.elapsed().as_secs_f64(),
+        result.cost,
+        result.good.len()
+    );
+    for (i, s) in result.starts.iter().enumerate() {
+        eprintln!("start {i}: V {:.4}, {} evaluations", s.cost, s.evaluations);
+    }
+}

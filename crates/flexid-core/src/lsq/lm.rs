@@ -150,7 +150,7 @@ impl<S> LmWorkspace<S> {
 
 /// In-place Cholesky factorisation `L L^T` of the `n x n` row-major matrix `a` (lower
 /// triangle overwritten by `L`); `false` when it is not numerically positive definite.
-fn cholesky(a: &mut [f64], n: usize) -> bool {
+pub(crate) fn cholesky(a: &mut [f64], n: usize) -> bool {
     for j in 0..n {
         let mut d = a[j * n + j];
         for k in 0..j {
@@ -173,7 +173,7 @@ fn cholesky(a: &mut [f64], n: usize) -> bool {
 }
 
 /// Solve `L L^T x = b` in place (`x` holds `b` on entry).
-fn cholesky_solve(l: &[f64], n: usize, x: &mut [f64]) {
+pub(crate) fn cholesky_solve(l: &[f64], n: usize, x: &mut [f64]) {
     for i in 0..n {
         let mut v = x[i];
         for k in 0..i {

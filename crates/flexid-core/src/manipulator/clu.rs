@@ -9,33 +9,43 @@ use num_complex::Complex64;
 /// Factorises the row-major `n x n` matrix `a` in place into `L U` (unit lower `L` below
 /// the diagonal, `U` on and above), with the row permutation in `piv` (`piv[k]` is the row
 /// swapped with row `k` at step `k`). Returns `false` when a pivot is exactly zero or not
-/// finite (the matrix is singular to working precision).
+/// finite (the matrix is singular to working precision). The inner loops run over row
+/// slices (no index checks per element).
 pub fn factor(a: &mut [Complex64], n: usize, piv: &mut [usize]) -> bool {
-    debug_assert_eq!(a.len(), n * n);
+    assert!(a.len() == n * n && piv.len() >= n);
     for k in 0..n {
-        let p = (k..n)
-            .max_by(|&i, &j| a[i * n + k].norm_sqr().total_cmp(&a[j * n + k].norm_sqr()))
-            .unwrap_or(k);
+        // the largest magnitude in column k on and below the diagonal (a NaN wins)
+        let mut p = k;
+        let mut best = a[k * n + k].norm_sqr();
+        for i in k + 1..n {
+            let v = a[i * n + k].norm_sqr();
+            if v > best || v.is_nan() {
+                best = v;
+                p = i;
+                if v.is_nan() {
+                    break;
+                }
+            }
+        }
         piv[k] = p;
-        let pivot = a[p * n + k];
-        if !(pivot.norm_sqr() > 0.0 && pivot.norm_sqr().is_finite()) {
+        if !(best > 0.0 && best.is_finite()) {
             return false;
         }
         if p != k {
-            for c in 0..n {
-                a.swap(k * n + c, p * n + c);
-            }
+            let (top, bottom) = a.split_at_mut(p * n);
+            top[k * n..(k + 1) * n].swap_with_slice(&mut bottom[..n]);
         }
-        let inv = pivot.inv();
-        for i in k + 1..n {
-            let l = a[i * n + k] * inv;
-            a[i * n + k] = l;
+        let inv = a[k * n + k].inv();
+        let (top, rest) = a.split_at_mut((k + 1) * n);
+        let urow = &top[k * n + k + 1..(k + 1) * n];
+        for row in rest.chunks_exact_mut(n) {
+            let l = row[k] * inv;
+            row[k] = l;
             if l == Complex64::new(0.0, 0.0) {
                 continue;
             }
-            for c in k + 1..n {
-                let u = a[k * n + c];
-                a[i * n + c] -= l * u;
+            for (x, u) in row[k + 1..].iter_mut().zip(urow) {
+                *x -= l * *u;
             }
         }
     }
@@ -45,39 +55,46 @@ pub fn factor(a: &mut [Complex64], n: usize, piv: &mut [usize]) -> bool {
 /// Solves `A X = B` in place for the `n x m` row-major right-hand sides `b`, with `lu`
 /// and `piv` from [`factor`].
 pub fn solve(lu: &[Complex64], n: usize, piv: &[usize], b: &mut [Complex64], m: usize) {
-    debug_assert_eq!(b.len(), n * m);
+    assert!(b.len() == n * m && lu.len() == n * n && piv.len() >= n);
+    if m == 0 {
+        return;
+    }
     for (k, &p) in piv.iter().enumerate().take(n) {
         if p != k {
-            for c in 0..m {
-                b.swap(k * m + c, p * m + c);
-            }
+            let (top, bottom) = b.split_at_mut(p * m);
+            top[k * m..(k + 1) * m].swap_with_slice(&mut bottom[..m]);
         }
     }
+    // Both sweeps update whole rows of `b` by multiples of another row (right-looking:
+    // the row just finished goes into every row after it), so that no row is written
+    // twice in a row and the updates pipeline.
     // forward: L y = b (unit diagonal)
-    for i in 0..n {
-        for k in 0..i {
+    for k in 0..n {
+        let (done, rest) = b.split_at_mut((k + 1) * m);
+        let bk = &done[k * m..];
+        for (i, bi) in (k + 1..n).zip(rest.chunks_exact_mut(m)) {
             let l = lu[i * n + k];
             if l == Complex64::new(0.0, 0.0) {
                 continue;
             }
-            for c in 0..m {
-                let y = b[k * m + c];
-                b[i * m + c] -= l * y;
+            for (x, y) in bi.iter_mut().zip(bk) {
+                *x -= l * *y;
             }
         }
     }
     // backward: U x = y
     for i in (0..n).rev() {
-        for k in i + 1..n {
-            let u = lu[i * n + k];
-            for c in 0..m {
-                let x = b[k * m + c];
-                b[i * m + c] -= u * x;
-            }
-        }
+        let (head, tail) = b.split_at_mut(i * m);
+        let bi = &mut tail[..m];
         let inv = lu[i * n + i].inv();
-        for c in 0..m {
-            b[i * m + c] *= inv;
+        for x in bi.iter_mut() {
+            *x *= inv;
+        }
+        for (j, bj) in head.chunks_exact_mut(m).enumerate() {
+            let u = lu[j * n + i];
+            for (x, y) in bj.iter_mut().zip(bi.iter()) {
+                *x -= u * *y;
+            }
         }
     }
 }

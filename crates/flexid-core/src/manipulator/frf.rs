@@ -14,21 +14,26 @@
 //! With the dynamic stiffness `Z(s) = s^2 M + s C + K` (symmetric) and `X = Z^-1 P R`:
 //! `G(s) = s (P R)^T X`, and since `dZ/d ln k_s = k_s e_s e_s^T`,
 //! `dG/d ln k_s = -s k_s a_s^T a_s` and `dG/d ln c_s = -s^2 c_s a_s^T a_s` with the row
-//! `a_s = e_s^T X` (`Z^-1` is symmetric, so `(P R)^T Z^-1 e_s = a_s^T`). One LU of `Z` and
-//! `N` solves per line give the FRF and every derivative. `G` is symmetric (reciprocity:
-//! the paper's eq. (13)).
+//! `a_s = e_s^T X` (`Z^-1` is symmetric, so `(P R)^T Z^-1 e_s = a_s^T`). One LU and `N`
+//! solves per line give the FRF and every derivative. `G` is symmetric (reciprocity: the
+//! paper's eq. (13)). The LU is the arm's alone, `n_a x n_a`, with the motors eliminated
+//! ([`reduced`]); the full `Z` ([`full`]) where that loses precision.
 //!
 //! This is the continuous-time model. The measured FRF of a sampled drive (zero-order-hold
 //! torque) differs from it by a half-sample delay and a magnitude change of a few hundredths
 //! of a dB at a tenth of the sample rate (`../shared/design/multiaxis.md`, fact 3); the
 //! identification's cost compares magnitudes only, so the delay does not enter.
 
-use super::clu;
 use super::pose::RigidPose;
 use super::springs::Flexibilities;
 use super::ManipulatorError;
+use full::FullSystem;
 use nalgebra::DMatrix;
 use num_complex::Complex64;
+use reduced::ReducedSystem;
+
+mod full;
+pub mod reduced;
 
 /// The model FRF matrices at a set of frequencies.
 #[derive(Debug, Clone, PartialEq)]
@@ -44,62 +49,49 @@ pub struct ModelFrf {
 /// buffer of the per-line solve (nothing is allocated per line).
 #[derive(Debug, Clone)]
 pub struct FrfPlan {
-    /// Coordinates `n_a + N`.
-    n: usize,
     /// Axes `N`.
     axes: usize,
-    /// `M` row-major [kg m^2].
-    mass: Vec<f64>,
-    /// `diag(dg/dq, 0)` row-major [N m/rad].
-    gravity: Vec<f64>,
     /// Per pair: the coordinates it joins (`e_s = e_a - e_m`).
     pairs: Vec<(usize, Option<usize>)>,
     /// Motor coordinate and gear ratio per axis.
     motors: Vec<(usize, f64)>,
-    /// `Z`, then its LU.
-    z: Vec<Complex64>,
-    piv: Vec<usize>,
+    /// The full system (every line where the reduced one does not apply).
+    full: FullSystem,
+    /// The arm's system with the motors eliminated, where the pose allows it.
+    reduced: Option<ReducedSystem>,
     /// `X = Z^-1 P R` (`n x N`, row-major).
     x: Vec<Complex64>,
-    /// `a_s` of one pair.
-    a: Vec<Complex64>,
+    /// The rows `a_s` of every pair (`S x N`) and the derivative factors (`2 S`) of
+    /// [`FrfPlan::frf_and_derivatives_into`].
+    rows: Vec<Complex64>,
+    factors: Vec<Complex64>,
 }
 
 impl FrfPlan {
     /// The plan of `pose`.
     pub fn new(pose: &RigidPose) -> Self {
         let n = pose.coords();
-        let na = pose.arm_coords();
         let axes = pose.axes();
-        let mut mass = vec![0.0; n * n];
-        let mut gravity = vec![0.0; n * n];
-        for i in 0..na {
-            for j in 0..na {
-                mass[i * n + j] = pose.arm_mass[(i, j)];
-                gravity[i * n + j] = pose.gravity_stiffness[(i, j)];
-            }
-        }
-        let motors: Vec<(usize, f64)> = pose
-            .motors
-            .iter()
-            .enumerate()
-            .map(|(i, m)| (pose.motor_coord(i), m.gear_ratio))
-            .collect();
-        for (i, m) in pose.motors.iter().enumerate() {
-            let c = pose.motor_coord(i);
-            mass[c * n + c] = m.arm_side_inertia_kgm2();
-        }
         FrfPlan {
-            n,
             axes,
-            mass,
-            gravity,
             pairs: pose.springs.iter().map(|s| pose.spring_coords(s)).collect(),
-            motors,
-            z: vec![Complex64::new(0.0, 0.0); n * n],
-            piv: vec![0; n],
+            motors: (0..axes)
+                .map(|i| (pose.motor_coord(i), pose.motors[i].gear_ratio))
+                .collect(),
+            full: FullSystem::new(pose),
+            reduced: ReducedSystem::new(pose),
             x: vec![Complex64::new(0.0, 0.0); n * axes],
-            a: vec![Complex64::new(0.0, 0.0); axes],
+            rows: vec![Complex64::new(0.0, 0.0); pose.springs.len() * axes],
+            factors: vec![Complex64::new(0.0, 0.0); 2 * pose.springs.len()],
+        }
+    }
+
+    /// The plan of `pose` that always solves the full `Z` (the tests' reference).
+    #[cfg(test)]
+    pub(crate) fn full_form(pose: &RigidPose) -> Self {
+        FrfPlan {
+            reduced: None,
+            ..FrfPlan::new(pose)
         }
     }
 
@@ -134,27 +126,62 @@ impl FrfPlan {
         g: &mut [Complex64],
         dg: &mut [Complex64],
     ) -> Result<(), ManipulatorError> {
-        let s = self.solve(f_hz, theta)?;
-        self.gather(s, g);
-        let nn = self.axes * self.axes;
         let npairs = self.pairs.len();
-        for p in 0..npairs {
-            let (a, m) = self.pairs[p];
-            for j in 0..self.axes {
-                let xm = m.map_or(Complex64::new(0.0, 0.0), |m| self.x[m * self.axes + j]);
-                self.a[j] = self.x[a * self.axes + j] - xm;
-            }
-            let fk = -s * theta.stiffness_nm_per_rad[p];
-            let fc = -s * s * theta.damping_nms_per_rad[p];
+        let nn = self.axes * self.axes;
+        let (mut rows, mut factors) = (
+            std::mem::take(&mut self.rows),
+            std::mem::take(&mut self.factors),
+        );
+        let out = self.frf_and_pair_rows_into(f_hz, theta, g, &mut rows, &mut factors);
+        for p in (0..npairs).filter(|_| out.is_ok()) {
+            let a = &rows[p * self.axes..(p + 1) * self.axes];
+            let (fk, fc) = (factors[p], factors[npairs + p]);
             let (dk, rest) = dg[p * nn..].split_at_mut(nn);
             let dc = &mut rest[(npairs - 1) * nn..npairs * nn];
             for i in 0..self.axes {
                 for j in 0..self.axes {
-                    let aa = self.a[i] * self.a[j];
+                    let aa = a[i] * a[j];
                     dk[i * self.axes + j] = fk * aa;
                     dc[i * self.axes + j] = fc * aa;
                 }
             }
+        }
+        self.rows = rows;
+        self.factors = factors;
+        out
+    }
+
+    /// `G(j 2 pi f_hz)` into `g` and its derivatives in factored form:
+    /// `dG / d theta_p = factors[p] a_s^T a_s` with the row `a_s` of pair `s = p mod S`
+    /// in `rows[s N..(s + 1) N]` and `factors` `-s k_1 .. -s k_S, -s^2 c_1 .. -s^2 c_S`
+    /// [N m/rad] (what a caller needing a few elements of the `2 S` derivatives takes, at
+    /// `O(S N)` per line instead of `O(S N^2)`).
+    pub fn frf_and_pair_rows_into(
+        &mut self,
+        f_hz: f64,
+        theta: &Flexibilities,
+        g: &mut [Complex64],
+        rows: &mut [Complex64],
+        factors: &mut [Complex64],
+    ) -> Result<(), ManipulatorError> {
+        let s = self.solve(f_hz, theta)?;
+        self.gather(s, g);
+        let npairs = self.pairs.len();
+        let axes = self.axes;
+        for (p, &(a, m)) in self.pairs.iter().enumerate() {
+            let row = &mut rows[p * axes..(p + 1) * axes];
+            let xa = &self.x[a * axes..(a + 1) * axes];
+            match m {
+                Some(m) => {
+                    let xm = &self.x[m * axes..(m + 1) * axes];
+                    for ((r, xa), xm) in row.iter_mut().zip(xa).zip(xm) {
+                        *r = xa - xm;
+                    }
+                }
+                None => row.copy_from_slice(xa),
+            }
+            factors[p] = -s * theta.stiffness_nm_per_rad[p];
+            factors[npairs + p] = -s * s * theta.damping_nms_per_rad[p];
         }
         Ok(())
     }
@@ -179,33 +206,22 @@ impl FrfPlan {
         })
     }
 
-    /// Builds `Z(s)` at `s = j 2 pi f_hz`, factorises it and solves `X = Z^-1 P R`;
-    /// returns `s`.
+    /// Solves `X = Z(s)^-1 P R` at `s = j 2 pi f_hz` (the reduced system, else the full
+    /// one); returns `s`.
     fn solve(&mut self, f_hz: f64, theta: &Flexibilities) -> Result<Complex64, ManipulatorError> {
         debug_assert_eq!(theta.pairs(), self.pairs.len());
-        let n = self.n;
         let s = Complex64::new(0.0, 2.0 * std::f64::consts::PI * f_hz);
-        let s2 = s * s;
-        for ((z, &m), &k) in self.z.iter_mut().zip(&self.mass).zip(&self.gravity) {
-            *z = s2 * m + k;
-        }
-        for (p, &(a, m)) in self.pairs.iter().enumerate() {
-            let w = theta.stiffness_nm_per_rad[p] + s * theta.damping_nms_per_rad[p];
-            self.z[a * n + a] += w;
-            if let Some(m) = m {
-                self.z[m * n + m] += w;
-                self.z[a * n + m] -= w;
-                self.z[m * n + a] -= w;
+        if let Some(r) = &mut self.reduced {
+            if r.solve(s, theta, &mut self.x) {
+                return Ok(s);
             }
         }
-        if !clu::factor(&mut self.z, n, &mut self.piv) {
+        if !self
+            .full
+            .solve(s, theta, &self.pairs, &self.motors, &mut self.x)
+        {
             return Err(ManipulatorError::Singular { f_hz });
         }
-        self.x.fill(Complex64::new(0.0, 0.0));
-        for (j, &(c, r)) in self.motors.iter().enumerate() {
-            self.x[c * self.axes + j] = Complex64::new(r, 0.0);
-        }
-        clu::solve(&self.z, n, &self.piv, &mut self.x, self.axes);
         Ok(s)
     }
 

@@ -9,21 +9,22 @@
 //! concave map `S -> S^(1/p)` and, for `p < 2`, `E^2 -> |E|^p`, lie below their tangents,
 //! so `V(theta) <= const + sum_e sum_k w_ek E_k(theta)^2` with
 //! `w_ek = alpha_k |E_k(theta_0)|^(p-2) S_e(theta_0)^(1/p-1) / (2 sum alpha)`, equality at
-//! `theta_0`. Each round minimises that weighted sum of squares with the project's
-//! Levenberg-Marquardt ([`crate::lsq`], Jacobian rows from the FRF's analytic derivatives)
-//! and so lowers `V`; the rounds stop when `V` no longer falls. At a fixed point the
-//! gradients of the two agree, so it is a stationary point of `V` itself.
+//! `theta_0`. Levenberg-Marquardt steps on that weighted sum of squares (Jacobian rows
+//! from the FRF's analytic derivatives) lower `V`; the weights are taken anew at every
+//! accepted step ([`reweighted_lm`]), so the fit is Levenberg-Marquardt on `V` itself with
+//! the majoriser's curvature, and ends at a stationary point of `V` (where the gradients
+//! of the two agree).
 //!
 //! The parameters are the logarithms of the stiffnesses and dampings (all positive, all of
 //! order one in scale).
 
-use super::cost::{db_of, Cost, Weighting, DB_PER_NEPER};
+use super::cost::{abs_pow, db_of, Cost, Weighting, DB_PER_NEPER};
 use super::frf::FrfPlan;
 use super::pose::RigidPose;
 use super::sampled::SampledPose;
 use super::springs::Flexibilities;
 use super::ManipulatorError;
-use crate::lsq::{self, Damping, LmOptions, LmWorkspace, NormalEquations};
+use crate::lsq::NormalEquations;
 use nalgebra::DMatrix;
 use num_complex::Complex64;
 use rand::{Rng, SeedableRng};
@@ -59,9 +60,11 @@ pub struct IdentifyOptions {
     pub seed: u64,
     /// Worker threads; 0: every core.
     pub threads: usize,
-    /// Levenberg-Marquardt evaluations per reweighting round at most.
+    /// Model evaluations (cost passes) of one local fit at most: per start in the
+    /// continuous form, per round in the sampled one.
     pub evals_per_round: usize,
-    /// Reweighting rounds per start at most.
+    /// Rounds per start at most in the sampled form (the sampled ratio refreshed between
+    /// them); the continuous form has one.
     pub rounds: usize,
     /// The model FRF compared.
     pub form: FrfForm,
@@ -74,7 +77,7 @@ impl Default for IdentifyOptions {
             spread: 3.0,
             seed: 1,
             threads: 0,
-            evals_per_round: 40,
+            evals_per_round: 400,
             rounds: 60,
             form: FrfForm::Continuous,
         }
@@ -427,8 +430,15 @@ struct Fit<'a> {
     /// The error [dB] per term and line at the last cost pass.
     e: Vec<Vec<f64>>,
     g: Vec<Complex64>,
-    dg: Vec<Complex64>,
+    /// The pair rows and derivative factors of one line
+    /// ([`FrfPlan::frf_and_pair_rows_into`]).
+    pair_rows: Vec<Complex64>,
+    factors: Vec<Complex64>,
+    /// One Jacobian row, and the rows gathered for `J^T J`.
     row: Vec<f64>,
+    block: jacobian_block::JacobianBlock,
+    /// The local fit's buffers.
+    lm: reweighted_lm::LmBuffers,
 }
 
 impl<'a> Fit<'a> {
@@ -474,12 +484,16 @@ impl<'a> Fit<'a> {
                 .map(|t| vec![0.0; t.lines.len()])
                 .collect(),
             g: vec![Complex64::new(0.0, 0.0); axes * axes],
-            dg: vec![Complex64::new(0.0, 0.0); 2 * pairs * axes * axes],
+            pair_rows: vec![Complex64::new(0.0, 0.0); pairs * axes],
+            factors: vec![Complex64::new(0.0, 0.0); 2 * pairs],
             row: vec![0.0; 2 * pairs],
+            block: jacobian_block::JacobianBlock::new(2 * pairs),
+            lm: reweighted_lm::LmBuffers::default(),
         }
     }
 
-    /// One start: rounds of reweighting and LM until `V` stops falling.
+    /// One start: Levenberg-Marquardt on `V` ([`reweighted_lm`]); in the sampled form,
+    /// rounds of it with the sampled ratio refreshed between them until `V` stops falling.
     fn run(&mut self, start: &[f64], opts: &IdentifyOptions) -> StartOutcome {
         let start_theta = Flexibilities::from_log(start);
         let mut theta = start.to_vec();
@@ -499,45 +513,41 @@ impl<'a> Fit<'a> {
             return failed("the model is singular at the start".into(), 1);
         };
         evaluations += 1;
-        let lm_opts = LmOptions {
-            ftol: 1e-10,
-            xtol: 1e-10,
-            gtol: 1e-10,
-            max_evals: opts.evals_per_round.max(2),
-            damping: Damping::Nielsen,
-        };
-        let mut ws = LmWorkspace::new(self, theta.len());
-        for _ in 0..opts.rounds.max(1) {
-            self.reweight();
-            let out = match lsq::minimize(self, &theta, &lm_opts, &mut ws) {
-                Ok(o) => o,
-                Err(why) => return failed(why, evaluations),
-            };
-            evaluations += out.evaluations;
-            self.set_theta(&ws.theta);
-            let Some(v_new) = self.errors() else { break };
-            evaluations += 1;
-            // the sampled form's ratio at the new parameters, for the next round (and V
-            // in the sampled form)
-            let v_new = match opts.form {
-                FrfForm::Continuous => v_new,
-                FrfForm::Sampled { .. } => {
-                    match self.refresh_form(opts.form).and_then(|_| self.errors()) {
-                        Some(v) => v,
-                        None => break,
-                    }
-                }
-            };
-            // the majoriser guarantees no increase; a fall below the round-off of V ends it
-            if v_new >= v * (1.0 - 1e-9) {
-                if v_new < v {
-                    v = v_new;
-                    theta.copy_from_slice(&ws.theta);
+        let mut round_start = theta.clone();
+        for round in 0..opts.rounds.max(1) {
+            let v_round = v;
+            let Some(d) = self.descend(&mut theta, v, opts.evals_per_round.max(2)) else {
+                if round == 0 {
+                    return failed(
+                        "the model's derivatives are not finite at the start".into(),
+                        1,
+                    );
                 }
                 break;
+            };
+            evaluations += d.evaluations;
+            let FrfForm::Sampled { .. } = opts.form else {
+                v = d.v;
+                break;
+            };
+            // the sampled form's ratio at the new parameters, for the next round (and V in
+            // the sampled form)
+            self.set_theta(&theta);
+            let v_new = self.refresh_form(opts.form).and_then(|_| self.errors());
+            evaluations += 1;
+            match v_new {
+                // a fall below the round-off of V ends it
+                Some(v_new) if v_new < v_round * (1.0 - 1e-9) => v = v_new,
+                Some(v_new) if v_new < v_round => {
+                    v = v_new;
+                    break;
+                }
+                _ => {
+                    theta.copy_from_slice(&round_start);
+                    break;
+                }
             }
-            v = v_new;
-            theta.copy_from_slice(&ws.theta);
+            round_start.copy_from_slice(&theta);
         }
         StartOutcome {
             start: start_theta,
@@ -614,7 +624,7 @@ impl<'a> Fit<'a> {
                 .alpha
                 .iter()
                 .zip(e)
-                .map(|(a, e)| a * e.abs().powf(p))
+                .map(|(a, e)| a * abs_pow(*e, p))
                 .sum::<f64>()
                 / t.alpha_sum;
             let outer = s.max(1e-300).powf(1.0 / p - 1.0) / (2.0 * t.alpha_sum);
@@ -659,38 +669,46 @@ impl NormalEquations for Fit<'_> {
 
     fn normal_after_cost(&mut self, _: &mut (), jtj: &mut [f64], jtr: &mut [f64]) -> bool {
         let np = self.row.len();
-        let nn = self.cost.axes * self.cost.axes;
+        let npairs = np / 2;
+        let axes = self.cost.axes;
         jtj.fill(0.0);
         jtr.fill(0.0);
+        self.block.clear();
         for (pose, lines) in self.lines.iter().enumerate() {
             for (k, uses) in lines {
                 let f = self.cost.f_hz[pose][*k];
                 if self.plans[pose]
-                    .frf_and_derivatives_into(f, &self.theta, &mut self.g, &mut self.dg)
+                    .frf_and_pair_rows_into(
+                        f,
+                        &self.theta,
+                        &mut self.g,
+                        &mut self.pair_rows,
+                        &mut self.factors,
+                    )
                     .is_err()
                 {
                     return false;
                 }
                 for u in uses {
                     let t = &self.cost.terms[u.term];
-                    let el = t.n * self.cost.axes + t.m;
-                    let g = self.g[el];
+                    let g = self.g[t.n * axes + t.m];
                     let sw = self.w[u.term][u.j].sqrt();
                     let r = sw * (db_of(g) + self.offset_db[u.term][u.j] - t.measured_db[u.j]);
-                    let ginv = g.inv();
-                    for (p, x) in self.row.iter_mut().enumerate() {
-                        // d(20 log10 |G|) = DB_PER_NEPER Re(dG / G)
-                        *x = sw * DB_PER_NEPER * (self.dg[p * nn + el] * ginv).re;
+                    // d(20 log10 |G|) = DB_PER_NEPER Re(dG / G), dG = factor a_n a_m
+                    let scale = g.inv() * (sw * DB_PER_NEPER);
+                    for (p, a) in self.pair_rows.chunks_exact(axes).enumerate() {
+                        let q = a[t.n] * a[t.m] * scale;
+                        self.row[p] = (self.factors[p] * q).re;
+                        self.row[npairs + p] = (self.factors[npairs + p] * q).re;
                     }
-                    for a in 0..np {
-                        jtr[a] += self.row[a] * r;
-                        for b in a..np {
-                            jtj[a * np + b] += self.row[a] * self.row[b];
-                        }
+                    for (j, x) in jtr.iter_mut().zip(&self.row) {
+                        *j += x * r;
                     }
+                    self.block.push(&self.row, jtj);
                 }
             }
         }
+        self.block.flush(jtj);
         for a in 0..np {
             for b in 0..a {
                 jtj[a * np + b] = jtj[b * np + a];
@@ -700,5 +718,7 @@ impl NormalEquations for Fit<'_> {
     }
 }
 
+mod jacobian_block;
+mod reweighted_lm;
 #[cfg(test)]
 mod tests;

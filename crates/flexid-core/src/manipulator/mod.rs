@@ -11,7 +11,9 @@
 //!   and gravity stiffness over its coordinates, the motors).
 //! * [`flex_file`], [`flexible`]: the flexibility file beside a robot's URDF and the
 //!   flexible robot built from both (bearing joints inserted), linearised at any pose.
-//! * [`clu`]: a small complex LU in place (the FRF's solve per line, no allocation).
+//! * [`clu`]: a small complex LU in place (the full model's solve per line, no
+//!   allocation); [`augmented`]: the same elimination on `[A | B]` with real and imaginary
+//!   parts apart (the motor-eliminated model's solve per line, vectorised).
 //! * [`cost`]: the paper's identification cost (eqs. (12), (15)): per-element bands,
 //!   weights (the paper's, or the measured variance's), the `p`-norm, the symmetric
 //!   reduction.
@@ -28,6 +30,7 @@
 //! arm away from the pose: open-loop unstable). Bearing coordinates carry gravity too (they
 //! are joints of the arm's kinematic chain, held at zero at the pose).
 
+pub mod augmented;
 pub mod clu;
 pub mod cost;
 pub mod flex_file;

@@ -153,3 +153,77 @@ fn a_pose_with_a_coordinate_held_twice_is_refused() {
     );
     assert!(matches!(e, Err(ManipulatorError::Shape { .. })), "{e:?}");
 }
+
+/// The FRF and its derivatives of `plan` and of the full-form reference at `f_hz`, the
+/// largest difference relative to the largest element of each.
+fn reduced_against_full(pose: &RigidPose, theta: &Flexibilities, f_hz: &[f64]) -> (f64, f64) {
+    let mut plan = FrfPlan::new(pose);
+    let mut reference = FrfPlan::full_form(pose);
+    let nn = plan.axes() * plan.axes();
+    let np = 2 * plan.pairs();
+    let zero = Complex64::new(0.0, 0.0);
+    let (mut g, mut dg) = (vec![zero; nn], vec![zero; np * nn]);
+    let (mut gr, mut dgr) = (g.clone(), dg.clone());
+    let (mut worst_g, mut worst_dg) = (0.0f64, 0.0f64);
+    for &f in f_hz {
+        plan.frf_and_derivatives_into(f, theta, &mut g, &mut dg)
+            .unwrap();
+        reference
+            .frf_and_derivatives_into(f, theta, &mut gr, &mut dgr)
+            .unwrap();
+        let rel = |a: &[Complex64], b: &[Complex64]| {
+            let scale = b.iter().map(|x| x.norm()).fold(0.0, f64::max);
+            a.iter()
+                .zip(b)
+                .map(|(x, y)| (x - y).norm() / scale)
+                .fold(0.0, f64::max)
+        };
+        worst_g = worst_g.max(rel(&g, &gr));
+        worst_dg = worst_dg.max(rel(&dg, &dgr));
+        // frf_into takes the same path
+        let mut g1 = vec![zero; nn];
+        plan.frf_into(f, theta, &mut g1).unwrap();
+        assert_eq!(g1, g);
+    }
+    (worst_g, worst_dg)
+}
+
+/// The motors eliminated (the plan's `n_a x n_a` solve) give the full `Z`'s FRF and
+/// derivatives: the made-up arms over 0.5-500 Hz, and the reference robot's two
+/// identification poses on the benchmark's lines.
+#[test]
+fn the_reduced_solve_equals_the_full_one() {
+    let freqs: Vec<f64> = (0..70).map(|i| 0.5 * 1.105f64.powi(i)).collect();
+    for seed in 0..5 {
+        let (pose, theta) = two_axis_pose(seed);
+        let (eg, edg) = reduced_against_full(&pose, &theta, &freqs);
+        assert!(eg < 1e-10 && edg < 1e-10, "seed {seed}: {eg:e} {edg:e}");
+    }
+    let robot = crate::manipulator::reference::robot();
+    let truth = crate::manipulator::reference::perturbed_truth(&robot);
+    let lines: Vec<f64> = (0..299)
+        .map(|i| 2.0 * 100f64.powf(i as f64 / 298.0))
+        .collect();
+    for (_, q) in robot.poses_of(crate::manipulator::flex_file::PoseRole::Identification) {
+        let pose = robot.pose(&q).unwrap();
+        for theta in [&truth, &robot.nominal] {
+            let (eg, edg) = reduced_against_full(&pose, theta, &lines);
+            assert!(eg < 1e-10 && edg < 1e-10, "{eg:e} {edg:e}");
+        }
+    }
+}
+
+/// An undamped gear exactly at its motor's resonance with the arm held
+/// (`d = s^2 m + k = 0`): the motors are not eliminated there (the full form answers), and
+/// close to it the reduced form keeps its precision.
+#[test]
+fn a_motor_at_its_own_resonance_takes_the_full_form() {
+    let (pose, mut theta) = two_axis_pose(2);
+    let m = pose.motors[0].arm_side_inertia_kgm2();
+    // gear of axis 0: pair 2
+    theta.damping_nms_per_rad[2] = 0.0;
+    let f0 = (theta.stiffness_nm_per_rad[2] / m).sqrt() / (2.0 * std::f64::consts::PI);
+    let freqs = [f0, f0 * (1.0 + 1e-9), f0 * (1.0 + 1e-5), f0 * 1.01];
+    let (eg, edg) = reduced_against_full(&pose, &theta, &freqs);
+    assert!(eg < 1e-9 && edg < 1e-9, "{eg:e} {edg:e}");
+}

@@ -212,7 +212,8 @@ pub fn run_multi_sweep<D: MultiAxisDrive>(
         start_position_rad: vec![0.0; axes],
     };
     let mut fb = vec![Feedback::none(Instant::now()); axes];
-    let (mut p, mut p_prev, mut hold, mut torque) = (
+    let (mut p, mut p_prev, mut hold, mut torque, mut last) = (
+        vec![0.0; axes],
         vec![0.0; axes],
         vec![0.0; axes],
         vec![0.0; axes],
@@ -294,8 +295,8 @@ pub fn run_multi_sweep<D: MultiAxisDrive>(
     // Ramp every torque to zero (not recorded) unless a drive is gone or faulted; the
     // holding loop stays on (a released arm would fall).
     let (mut ramp_cycles, mut ramp_error) = (0, None);
-    if !reason.drive_failed() && record.len() > 0 {
-        let last: Vec<f64> = torque.clone();
+    if !reason.drive_failed() && !record.is_empty() {
+        last.copy_from_slice(&torque);
         let steps = plan.ramp_cycles.max(1);
         for s in 1..=steps {
             plan.hold.torque(&p, &p_prev, fs, &mut hold);

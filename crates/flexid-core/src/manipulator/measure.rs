@@ -64,6 +64,29 @@ impl MeasureOptions {
     }
 }
 
+impl MeasureOptions {
+    /// The orthogonal random-phase multisines of this measurement on `axes` axes (its
+    /// rate, period, band, levels, blocks and seed).
+    pub fn excitation(&self, axes: usize) -> Result<OrthogonalMultisine, ManipulatorError> {
+        OrthogonalMultisineDesign {
+            rms_nm: self.rms_nm.clone(),
+            blocks: self.blocks,
+            seed: self.seed,
+            ..OrthogonalMultisineDesign::new(
+                axes,
+                self.fs_hz,
+                self.period_samples,
+                self.band_hz,
+                0.0,
+            )
+        }
+        .generate()
+        .map_err(|e| ManipulatorError::Measurement {
+            detail: e.to_string(),
+        })
+    }
+}
+
 /// The pose `pose` with springs `theta` measured as `opts` says: the estimate with its
 /// variance.
 pub fn simulate(
@@ -73,23 +96,7 @@ pub fn simulate(
 ) -> Result<MimoFrf, ManipulatorError> {
     let mut plant = SampledPose::new(pose, theta, opts.fs_hz)?;
     let control = PositionLoop::for_pose(pose, opts.loop_bandwidth_hz);
-    let design = OrthogonalMultisineDesign {
-        rms_nm: opts.rms_nm.clone(),
-        blocks: opts.blocks,
-        seed: opts.seed,
-        ..OrthogonalMultisineDesign::new(
-            pose.axes(),
-            opts.fs_hz,
-            opts.period_samples,
-            opts.band_hz,
-            0.0,
-        )
-    };
-    let excitation = design
-        .generate()
-        .map_err(|e| ManipulatorError::Measurement {
-            detail: e.to_string(),
-        })?;
+    let excitation = opts.excitation(pose.axes())?;
     let mut estimator = MimoEstimator::from_multisine(&excitation)
         .map(|e| e.with_transient_periods(opts.transient_periods))
         .map_err(|e| ManipulatorError::Measurement {

@@ -5,7 +5,6 @@
 use std::sync::atomic::AtomicBool;
 
 use flexid_canopen::MultiAxisDrive;
-use flexid_core::excitation::OrthogonalMultisineDesign;
 use flexid_core::frf::MimoFrf;
 use flexid_core::manipulator::measure::MeasureOptions;
 use flexid_core::manipulator::{PositionLoop, RigidPose};
@@ -37,20 +36,8 @@ pub fn plan_pose(
     opts: &MeasureOptions,
     pacing: Pacing,
 ) -> Result<MultiSweepPlan, MeasurePoseError> {
-    let design = OrthogonalMultisineDesign {
-        rms_nm: opts.rms_nm.clone(),
-        blocks: opts.blocks,
-        seed: opts.seed,
-        ..OrthogonalMultisineDesign::new(
-            pose.axes(),
-            opts.fs_hz,
-            opts.period_samples,
-            opts.band_hz,
-            0.0,
-        )
-    };
-    let excitation = design
-        .generate()
+    let excitation = opts
+        .excitation(pose.axes())
         .map_err(|e| MeasurePoseError::Excitation {
             pose: name.to_string(),
             detail: e.to_string(),

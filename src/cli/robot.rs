@@ -229,32 +229,7 @@ pub fn robot(a: &RobotArgs) -> Result<(), CliError> {
         eprintln!("flexid robot: Bode matrix written to {}", path.display());
     }
     if let Some(path) = &a.json {
-        let names = robot.parameter_names();
-        let values: Vec<f64> = result
-            .best
-            .stiffness_nm_per_rad
-            .iter()
-            .chain(&result.best.damping_nms_per_rad)
-            .copied()
-            .collect();
-        let params: Vec<serde_json::Value> = names
-            .iter()
-            .enumerate()
-            .map(|(j, n)| {
-                let std = result
-                    .std_ln
-                    .as_ref()
-                    .map(|s| s[j])
-                    .filter(|s| s.is_finite());
-                serde_json::json!({
-                    "name": n,
-                    "value": values[j],
-                    "unit": if j < robot.springs.len() { "N m/rad" } else { "N m s/rad" },
-                    "std_rel": std,
-                    "identifiable": result.identifiable(j),
-                })
-            })
-            .collect();
+        let params = flexid_daemon::robot::files::parameters_json(&robot, &result);
         let doc = serde_json::json!({
             "robot": robot.name,
             "cost_db": result.cost,

@@ -266,34 +266,7 @@ pub fn identify_files(
     .map_err(|e| e.to_string())?;
     let model = model_frf(&poses, &cost, &result.best, form).map_err(|e| e.to_string())?;
     let names = robot.parameter_names();
-    let ns = robot.springs.len();
-    let flat = |t: &Flexibilities| -> Vec<f64> {
-        t.stiffness_nm_per_rad
-            .iter()
-            .chain(&t.damping_nms_per_rad)
-            .copied()
-            .collect()
-    };
-    let (values, nominal) = (flat(&result.best), flat(&robot.nominal));
-    let params: Vec<_> = names
-        .iter()
-        .enumerate()
-        .map(|(j, n)| {
-            let std = result
-                .std_ln
-                .as_ref()
-                .map(|s| s[j])
-                .filter(|s| s.is_finite());
-            serde_json::json!({
-                "name": n,
-                "value": values[j],
-                "nominal": nominal[j],
-                "unit": if j < ns { "N m/rad" } else { "N m s/rad" },
-                "std_rel": std,
-                "identifiable": result.identifiable(j),
-            })
-        })
-        .collect();
+    let params = parameters_json(robot, &result);
     let models: Vec<_> = files
         .iter()
         .zip(&model)
@@ -325,6 +298,44 @@ pub fn identify_files(
         result.cost
     );
     Ok((doc, summary))
+}
+
+/// Every identified parameter as JSON: `name`, `value`, the file's value (`nominal`),
+/// `unit`, `std_rel` (the standard uncertainty of its logarithm; null where the data carry
+/// none) and `identifiable`.
+pub fn parameters_json(
+    robot: &FlexibleRobot,
+    result: &flexid_core::manipulator::Identification,
+) -> Vec<serde_json::Value> {
+    let flat = |t: &Flexibilities| -> Vec<f64> {
+        t.stiffness_nm_per_rad
+            .iter()
+            .chain(&t.damping_nms_per_rad)
+            .copied()
+            .collect()
+    };
+    let (values, nominal) = (flat(&result.best), flat(&robot.nominal));
+    let ns = robot.springs.len();
+    robot
+        .parameter_names()
+        .iter()
+        .enumerate()
+        .map(|(j, n)| {
+            let std = result
+                .std_ln
+                .as_ref()
+                .map(|s| s[j])
+                .filter(|s| s.is_finite());
+            serde_json::json!({
+                "name": n,
+                "value": values[j],
+                "nominal": nominal[j],
+                "unit": if j < ns { "N m/rad" } else { "N m s/rad" },
+                "std_rel": std,
+                "identifiable": result.identifiable(j),
+            })
+        })
+        .collect()
 }
 
 #[cfg(test)]

@@ -7,35 +7,13 @@
 // 3. a sweep on the simulated-clock axis to its end: the identified model over the
 //    measurement and the parameter table with numbers.
 // Prints one `browser: ...` line per observation; exits non-zero on the first failure.
-import { chromium } from 'playwright-core';
+import { check, daemonEnv, log, runPage } from './harness.mjs';
 
-const url = process.env.FLEXID_URL;
-const token = process.env.FLEXID_TOKEN;
-const shot = process.env.FLEXID_SCREENSHOT;
+const { url, token, shot } = daemonEnv();
 const liveAxis = process.env.FLEXID_LIVE_AXIS || 'slow';
 const doneAxis = process.env.FLEXID_DONE_AXIS || 'fast';
-if (!url || !token || !shot) {
-  console.error('FLEXID_URL, FLEXID_TOKEN and FLEXID_SCREENSHOT are required');
-  process.exit(2);
-}
 
-const log = (...a) => console.log('browser:', ...a);
-function check(cond, msg) {
-  if (!cond) throw new Error('check failed: ' + msg);
-}
-
-const browser = await chromium.launch({
-  executablePath: process.env.CHROMIUM || '/usr/bin/chromium',
-  // no network beyond loopback here: keep chromium from calling home
-  args: ['--headless', '--no-sandbox', '--disable-gpu', '--disable-background-networking',
-    '--disable-dev-shm-usage', '--disable-quic', '--no-first-run', '--disable-component-update',
-    '--disable-sync'],
-});
-const errors = [];
-try {
-  const page = await browser.newPage({ viewport: { width: 1200, height: 1100 } });
-  page.on('pageerror', (e) => errors.push(String(e)));
-  page.on('console', (m) => { if (m.type() === 'error') errors.push(m.text()); });
+await runPage({ width: 1200, height: 1100 }, async (page, errors) => {
   await page.goto(url + '/');
   check((await page.title()).includes('flexid'), 'page title');
 
@@ -108,12 +86,4 @@ try {
   const shotDone = shot.replace(/\.png$/, '') + '-result.png';
   await page.screenshot({ path: shotDone, fullPage: true });
   log('screenshot', shotDone);
-  check(errors.length === 0, 'no script errors: ' + errors.join('; '));
-  log('ok');
-} catch (e) {
-  console.error('browser: FAILED:', e.message);
-  if (errors.length) console.error('browser: page errors:', errors.join('; '));
-  await browser.close();
-  process.exit(1);
-}
-await browser.close();
+});

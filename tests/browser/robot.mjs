@@ -5,33 +5,11 @@
 // 3. a sweep at pose id-2, then the identification: the parameter table and the model
 //    drawn over every element of the matrix (screenshot).
 // Prints one `browser: ...` line per observation; exits non-zero on the first failure.
-import { chromium } from 'playwright-core';
+import { check, daemonEnv, log, runPage } from './harness.mjs';
 
-const url = process.env.FLEXID_URL;
-const token = process.env.FLEXID_TOKEN;
-const shot = process.env.FLEXID_SCREENSHOT;
-if (!url || !token || !shot) {
-  console.error('FLEXID_URL, FLEXID_TOKEN and FLEXID_SCREENSHOT are required');
-  process.exit(2);
-}
+const { url, token, shot } = daemonEnv();
 
-const log = (...a) => console.log('browser:', ...a);
-function check(cond, msg) {
-  if (!cond) throw new Error('check failed: ' + msg);
-}
-
-const browser = await chromium.launch({
-  executablePath: process.env.CHROMIUM || '/usr/bin/chromium',
-  args: ['--headless', '--no-sandbox', '--disable-gpu', '--disable-background-networking',
-    '--disable-dev-shm-usage', '--disable-quic', '--no-first-run', '--disable-component-update',
-    '--disable-sync'],
-});
-const errors = [];
-try {
-  const page = await browser.newPage({ viewport: { width: 1200, height: 1400 } });
-  page.on('pageerror', (e) => errors.push(String(e)));
-  page.on('console', (m) => { if (m.type() === 'error') errors.push(m.text()); });
-  page.on('response', (r) => { if (r.status() >= 400) errors.push(`${r.status()} ${r.request().method()} ${r.url()}`); });
+await runPage({ width: 1200, height: 1400, httpErrors: true }, async (page) => {
   await page.goto(url + '/');
   await page.fill('#token', token);
   await page.click('#connect');
@@ -88,12 +66,4 @@ try {
   const shotDone = shot.replace(/\.png$/, '') + '-identified.png';
   await page.locator('#robot').screenshot({ path: shotDone });
   log('screenshot', shotDone);
-  check(errors.length === 0, 'no script errors: ' + errors.join('; '));
-  log('ok');
-} catch (e) {
-  console.error('browser: FAILED:', e.message);
-  if (errors.length) console.error('browser: page errors:', errors.join('; '));
-  await browser.close();
-  process.exit(1);
-}
-await browser.close();
+});

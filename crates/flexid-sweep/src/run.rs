@@ -154,11 +154,17 @@ impl SweepOutcome {
 /// feedback is due one period later. A master that falls more than half a period behind
 /// (preempted, a loaded host) restarts the schedule from now, counted as an overrun:
 /// firing the missed slots back to back would give the drive SYNCs closer than a period
-/// and each cycle no time to answer.
+/// and each cycle no time to answer. On a drive's grid ([`CyclicDrive::cycle_grid`]:
+/// EtherCAT's SYNC0) the slots start on the grid, also after an overrun (the schedule
+/// then restarts at the nearest grid point, waiting for it when it is ahead); the grid is
+/// read once, when the sweep starts (a drive clock drifting against the host's is not
+/// followed).
 pub(crate) struct Schedule {
     map: InstantMap,
     period_ns: u64,
     slot_ns: MonoNs,
+    /// The grid's phase: slots start at `phase_ns` modulo the period.
+    grid_phase_ns: Option<u64>,
     pub(crate) overruns: u64,
 }
 
@@ -168,8 +174,41 @@ impl Schedule {
             map: InstantMap::calibrate(),
             period_ns: (period.as_nanos() as u64).max(1),
             slot_ns: clock::now_ns(),
+            grid_phase_ns: None,
             overruns: 0,
         }
+    }
+
+    /// A schedule whose slots start on `grid` (see the type); the first slot is the grid
+    /// point nearest to now (waited for when ahead). Without a grid, as [`Schedule::new`].
+    pub(crate) fn on_grid(period: Duration, grid: Option<Instant>) -> Self {
+        let mut s = Self::new(period);
+        if let Some(grid) = grid {
+            let (now_ns, now) = (clock::now_ns(), Instant::now());
+            let grid_ns = if grid >= now {
+                now_ns as i128 + (grid - now).as_nanos() as i128
+            } else {
+                now_ns as i128 - (now - grid).as_nanos() as i128
+            };
+            s.grid_phase_ns = Some(grid_ns.rem_euclid(i128::from(s.period_ns)) as u64);
+            s.slot_ns = s.restart_at(now_ns);
+        }
+        s
+    }
+
+    /// The slot start a schedule restarted at `now` gets: `now`, or on a grid its point
+    /// nearest to `now` (slept to when ahead).
+    fn restart_at(&self, now: MonoNs) -> MonoNs {
+        let Some(phase) = self.grid_phase_ns else {
+            return now;
+        };
+        let p = self.period_ns;
+        let mut slot = now - (now + p - phase % p) % p;
+        if now - slot > p / 2 {
+            slot += p;
+            clock::sleep_until_ns(slot);
+        }
+        slot
     }
 
     /// The deadline of the cycle starting now (the end of its slot).
@@ -177,7 +216,7 @@ impl Schedule {
     pub(crate) fn next_deadline(&mut self) -> Instant {
         let now = clock::now_ns();
         if now > self.slot_ns + self.period_ns / 2 {
-            self.slot_ns = now;
+            self.slot_ns = self.restart_at(now);
             self.overruns += 1;
         }
         self.slot_ns += self.period_ns;
@@ -320,7 +359,10 @@ pub fn run_sweep_into<D: CyclicDrive>(
     let mut reason = StopReason::Complete;
     let mut stop_cycle = n as u64;
     let mut last_torque = 0.0;
-    let mut schedule = Schedule::new(period);
+    let mut schedule = match plan.pacing {
+        Pacing::Realtime => Schedule::on_grid(period, drive.cycle_grid()),
+        Pacing::Lockstep => Schedule::new(period),
+    };
 
     for k in 0..n {
         if stop.load(Ordering::Relaxed) {
@@ -464,5 +506,43 @@ pub fn run_sweep_into<D: CyclicDrive>(
         ramp_cycles,
         ramp_error,
         held_rows: fill.held(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The distance of `ns` from the grid of `phase` (modulo `period`), either side, ns.
+    fn off_grid(ns: u64, phase: u64, period: u64) -> u64 {
+        let d = (ns + period - phase) % period;
+        d.min(period - d)
+    }
+
+    #[test]
+    fn a_schedule_on_a_drive_grid_starts_its_slots_on_it_also_after_an_overrun() {
+        let period = Duration::from_millis(1);
+        let p = 1_000_000;
+        let grid = Instant::now() + Duration::from_micros(2_300);
+        let mut s = Schedule::on_grid(period, Some(grid));
+        let phase = s.grid_phase_ns.expect("a grid");
+        // The grid instant itself, on the monotonic clock, is on the grid (the two clocks
+        // read a few hundred ns apart).
+        let grid_ns = clock::now_ns() + (grid - Instant::now()).as_nanos() as u64;
+        assert!(off_grid(grid_ns, phase, p) < 20_000, "{grid_ns} vs {phase}");
+        assert_eq!(off_grid(s.slot_ns, phase, p), 0);
+        let first = s.slot_ns;
+        s.next_deadline();
+        assert_eq!(s.slot_ns, first + p);
+        // 2.7 periods behind: an overrun, restarted on the grid.
+        clock::sleep_until_ns(s.slot_ns + 2_700_000);
+        s.next_deadline();
+        assert_eq!(s.overruns, 1);
+        assert_eq!(off_grid(s.slot_ns, phase, p), 0);
+        // Without a grid, the first slot starts now.
+        let t = clock::now_ns();
+        let s = Schedule::on_grid(period, None);
+        assert!(s.slot_ns >= t && s.slot_ns - t < 1_000_000);
+        assert_eq!(s.grid_phase_ns, None);
     }
 }

@@ -94,6 +94,15 @@ pub trait CyclicDrive {
 
     /// Counters since enable.
     fn counters(&self) -> Counters;
+
+    /// Where a drive with a cycle clock of its own (EtherCAT's SYNC0, which latches the
+    /// process data) wants the master's cycles to start: one instant of the grid of
+    /// cycle starts, the others whole periods away. A real-time sweep starts its
+    /// cycles on it. `None` (the default): the master's cycle is the drive's (CAN: the
+    /// drive acts on the master's SYNC).
+    fn cycle_grid(&self) -> Option<Instant> {
+        None
+    }
 }
 
 /// Several drives in cyclic synchronous torque mode on one bus, enabled, whose set-points

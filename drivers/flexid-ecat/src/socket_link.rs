@@ -198,7 +198,7 @@ impl RawSocket {
             return Err(self.io("receiving a frame", e));
         }
         let len = len as usize;
-        if from.sll_pkttype == libc::PACKET_OUTGOING as u8 || len > buffer.len() {
+        if from.sll_pkttype == libc::PACKET_OUTGOING || len > buffer.len() {
             return Ok(Received::Skipped);
         }
         Ok(Received::Frame { len })

@@ -155,10 +155,12 @@ impl SweepOutcome {
 /// (preempted, a loaded host) restarts the schedule from now, counted as an overrun:
 /// firing the missed slots back to back would give the drive SYNCs closer than a period
 /// and each cycle no time to answer. On a drive's grid ([`CyclicDrive::cycle_grid`]:
-/// EtherCAT's SYNC0) the slots start on the grid, also after an overrun (the schedule
-/// then restarts at the nearest grid point, waiting for it when it is ahead); the grid is
-/// read once, when the sweep starts (a drive clock drifting against the host's is not
-/// followed).
+/// EtherCAT's SYNC0, the drive's own clock) the slots start on the grid, and an overrun
+/// skips the slots the loop is behind by (to the grid point nearest to now, waited for
+/// when ahead): the drive went through them holding its last torque, so the loop records
+/// a held row for each ([`Schedule::take_skipped`]) and row k stays the drive's cycle k.
+/// The grid is read once, when the sweep starts (a drive clock drifting against the
+/// host's is not followed).
 pub(crate) struct Schedule {
     map: InstantMap,
     period_ns: u64,
@@ -166,6 +168,8 @@ pub(crate) struct Schedule {
     /// The grid's phase: slots start at `phase_ns` modulo the period.
     grid_phase_ns: Option<u64>,
     pub(crate) overruns: u64,
+    /// Grid slots skipped by overruns and not yet taken by the loop.
+    skipped: u64,
 }
 
 impl Schedule {
@@ -176,6 +180,7 @@ impl Schedule {
             slot_ns: clock::now_ns(),
             grid_phase_ns: None,
             overruns: 0,
+            skipped: 0,
         }
     }
 
@@ -196,8 +201,8 @@ impl Schedule {
         s
     }
 
-    /// The slot start a schedule restarted at `now` gets: `now`, or on a grid its point
-    /// nearest to `now` (slept to when ahead).
+    /// The first slot's start on the grid: its point nearest to `now` (slept to when
+    /// ahead); `now` without a grid.
     fn restart_at(&self, now: MonoNs) -> MonoNs {
         let Some(phase) = self.grid_phase_ns else {
             return now;
@@ -216,11 +221,24 @@ impl Schedule {
     pub(crate) fn next_deadline(&mut self) -> Instant {
         let now = clock::now_ns();
         if now > self.slot_ns + self.period_ns / 2 {
-            self.slot_ns = self.restart_at(now);
             self.overruns += 1;
+            if self.grid_phase_ns.is_some() {
+                let p = self.period_ns;
+                let behind = (now - self.slot_ns + p / 2) / p;
+                self.slot_ns += behind * p;
+                self.skipped += behind;
+                clock::sleep_until_ns(self.slot_ns);
+            } else {
+                self.slot_ns = now;
+            }
         }
         self.slot_ns += self.period_ns;
         self.map.instant(self.slot_ns)
+    }
+
+    /// The grid slots skipped since the last call (0 without a grid).
+    pub(crate) fn take_skipped(&mut self) -> u64 {
+        std::mem::take(&mut self.skipped)
     }
 
     /// Sleeps until the end of the current slot (absolute).
@@ -364,7 +382,15 @@ pub fn run_sweep_into<D: CyclicDrive>(
         Pacing::Lockstep => Schedule::new(period),
     };
 
-    for k in 0..n {
+    // The last recorded row: the feedback a held row starts from (filled afterwards).
+    let mut last_row = Row {
+        torque_setpoint_nm: 0.0,
+        position_rad: 0.0,
+        velocity_rad_s: 0.0,
+        torque_actual_nm: 0.0,
+    };
+    let mut k = 0;
+    while k < n {
         if stop.load(Ordering::Relaxed) {
             reason = StopReason::Interrupted;
             stop_cycle = k as u64;
@@ -382,6 +408,22 @@ pub fn run_sweep_into<D: CyclicDrive>(
             Pacing::Realtime => schedule.next_deadline(),
             Pacing::Lockstep => now + plan.feedback_timeout,
         };
+        // Slots of a drive's grid this loop was too late for: the drive held the last
+        // torque through them; a held row each (the feedback filled from the neighbours),
+        // so that row k stays the drive's cycle k.
+        for _ in 0..schedule.take_skipped() {
+            if k + 1 >= n {
+                break;
+            }
+            let held = Row {
+                torque_setpoint_nm: last_torque,
+                ..last_row
+            };
+            fill.push(k, &held, false, sink);
+            rows += 1;
+            report_due |= (k + 1) % report_every == 0;
+            k += 1;
+        }
         let fb = match drive.cycle(plan.torque_nm[k], deadline) {
             Ok(fb) => fb,
             Err(e) => {
@@ -390,17 +432,13 @@ pub fn run_sweep_into<D: CyclicDrive>(
                 break;
             }
         };
-        fill.push(
-            k,
-            &Row {
-                torque_setpoint_nm: fb.torque_setpoint_nm,
-                position_rad: fb.position_rad,
-                velocity_rad_s: fb.velocity_rad_s,
-                torque_actual_nm: fb.torque_nm,
-            },
-            fb.fresh,
-            sink,
-        );
+        last_row = Row {
+            torque_setpoint_nm: fb.torque_setpoint_nm,
+            position_rad: fb.position_rad,
+            velocity_rad_s: fb.velocity_rad_s,
+            torque_actual_nm: fb.torque_nm,
+        };
+        fill.push(k, &last_row, fb.fresh, sink);
         rows += 1;
         last_torque = fb.torque_setpoint_nm;
         let lost = fb.counters.lost - base_lost;
@@ -439,6 +477,7 @@ pub fn run_sweep_into<D: CyclicDrive>(
         if plan.pacing == Pacing::Realtime {
             schedule.wait();
         }
+        k += 1;
     }
     let elapsed = t0.elapsed();
     let overruns = schedule.overruns;
@@ -520,7 +559,7 @@ mod tests {
     }
 
     #[test]
-    fn a_schedule_on_a_drive_grid_starts_its_slots_on_it_also_after_an_overrun() {
+    fn a_schedule_on_a_drive_grid_starts_its_slots_on_it_and_counts_the_slots_an_overrun_skips() {
         let period = Duration::from_millis(1);
         let p = 1_000_000;
         let grid = Instant::now() + Duration::from_micros(2_300);
@@ -534,10 +573,19 @@ mod tests {
         let first = s.slot_ns;
         s.next_deadline();
         assert_eq!(s.slot_ns, first + p);
-        // 2.7 periods behind: an overrun, restarted on the grid.
-        clock::sleep_until_ns(s.slot_ns + 2_700_000);
+        // 2.7 periods behind: an overrun; three slots skipped (the loop records a held row
+        // for each), the schedule still on the grid.
+        let behind_from = s.slot_ns;
+        clock::sleep_until_ns(behind_from + 2_700_000);
         s.next_deadline();
         assert_eq!(s.overruns, 1);
+        assert_eq!(s.take_skipped(), 3);
+        assert_eq!(s.take_skipped(), 0, "taken once");
+        assert_eq!(
+            s.slot_ns,
+            behind_from + 4 * p,
+            "slot 3 runs, its deadline a period on"
+        );
         assert_eq!(off_grid(s.slot_ns, phase, p), 0);
         // Without a grid, the first slot starts now.
         let t = clock::now_ns();

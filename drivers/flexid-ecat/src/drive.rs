@@ -237,6 +237,8 @@ pub struct EcatDrive<'md, const S: usize, const P: usize> {
     /// The SYNC0 grid on the host's clock: a pulse's instant, from the exchange with the
     /// shortest round trip so far (and those within [`SYNC0_RTT_SLACK`] of it).
     sync0: Option<Sync0Estimate>,
+    /// The DC reference's system time as the last exchange's frame passed it, ns.
+    last_dc_time_ns: u64,
 }
 
 /// Round trips this much longer than the shortest seen still refresh the SYNC0 estimate
@@ -419,6 +421,7 @@ impl<'md, const S: usize, const P: usize> EcatDrive<'md, S, P> {
             counters: Counters::default(),
             last: Inputs::default(),
             sync0: None,
+            last_dc_time_ns: 0,
         };
         drive.walk(Target::OperationEnabled).await?;
         drive.counters = Counters::default();
@@ -478,7 +481,8 @@ impl<'md, const S: usize, const P: usize> EcatDrive<'md, S, P> {
             .tx_rx_dc(self.md)
             .await
             .map_err(|source| EcatError::Exchange { cycle, source })?;
-        self.locate_sync0(sent, Instant::now(), response.extra.dc_system_time);
+        self.last_dc_time_ns = response.extra.dc_system_time;
+        self.locate_sync0(sent, Instant::now(), self.last_dc_time_ns);
         self.exchanges += 1;
         let got = response.working_counter;
         let expected = self.expected_wkc;
@@ -565,6 +569,12 @@ impl<'md, const S: usize, const P: usize> EcatDrive<'md, S, P> {
             rtt,
             best_rtt,
         });
+    }
+
+    /// Where in the SYNC0 cycle the last exchange's frame passed the DC reference: its
+    /// system time after the last pulse, ns (SYNC0 pulses at whole cycles of system time).
+    pub fn last_sync0_phase_ns(&self) -> u64 {
+        self.last_dc_time_ns % (self.config.cycle.as_nanos() as u64).max(1)
     }
 
     /// The round trip of the exchange the SYNC0 grid was located from.

@@ -220,3 +220,102 @@ pub fn main_device(iface: &str, priority: u8) -> &'static MainDevice<'static> {
     };
     Box::leak(Box::new(MainDevice::new(pdu_loop, timeouts, config)))
 }
+
+/// The emulated servos served in this process, on a thread that entered the namespace
+/// (`setns`), so their counters can be read at any time; stopped on drop.
+pub struct InProcessEmulator {
+    pub segment: flexid_ecat::inprocess::SharedSegment,
+    stop: std::sync::Arc<std::sync::atomic::AtomicBool>,
+    thread: Option<std::thread::JoinHandle<Result<flexid_vdrive::ethercat::EthercatStats, String>>>,
+}
+
+impl InProcessEmulator {
+    /// `options`' servos in front of the test plant on `veth.inner`, the frames served at
+    /// `SCHED_FIFO` `priority` (the SYNC0 clock thread too) when granted.
+    pub fn start(
+        veth: &Veth,
+        options: flexid_vdrive::ethercat::EthercatOptions,
+        priority: u8,
+    ) -> Self {
+        use std::sync::atomic::AtomicBool;
+        use std::sync::Arc;
+        let plant = flexid_vdrive::DrivePlant::load(Some(&plant_path())).expect("plant file");
+        let segment = flexid_vdrive::ethercat::servo_segment(&plant, &options).expect("servos");
+        let stop = Arc::new(AtomicBool::new(false));
+        let (ready_tx, ready_rx) = std::sync::mpsc::channel();
+        let (seg, halt, ns, inner) = (
+            segment.clone(),
+            stop.clone(),
+            veth.ns.clone(),
+            veth.inner.clone(),
+        );
+        let thread = std::thread::Builder::new()
+            .name("ecat-emulator".into())
+            .spawn(move || {
+                let entered = enter_namespace(&ns);
+                let link = entered.and_then(|()| {
+                    let clock = flexid_ecat::sync0_clock::SegmentClock::start();
+                    flexid_ecat::socket_link::SocketLink::open(&inner, seg.clone(), clock)
+                        .map(|l| (l, clock))
+                        .map_err(|e| e.to_string())
+                });
+                let (mut link, clock) = match link {
+                    Ok(l) => {
+                        let _ = ready_tx.send(Ok(()));
+                        l
+                    }
+                    Err(e) => {
+                        let _ = ready_tx.send(Err(e.clone()));
+                        return Err(e);
+                    }
+                };
+                let setup = flexid_rt::RtSetup {
+                    lock_memory: false,
+                    ..flexid_rt::RtSetup::realtime(priority)
+                };
+                let _ = setup.apply();
+                flexid_vdrive::ethercat::serve(&mut link, &seg, clock, &halt, setup)
+                    .map_err(|e| e.to_string())
+            })
+            .expect("emulator thread");
+        ready_rx
+            .recv()
+            .expect("emulator thread answers")
+            .expect("emulator on the namespace's end");
+        InProcessEmulator {
+            segment,
+            stop,
+            thread: Some(thread),
+        }
+    }
+
+    /// The servos' counters now.
+    pub fn servo_stats(&self) -> flexid_ecat::CycleStats {
+        flexid_vdrive::ethercat::servo_stats(&self.segment).expect("servo counters")
+    }
+
+    /// Stops serving; the link's, the clock's and the servos' counters.
+    pub fn stop(&mut self) -> Option<flexid_vdrive::ethercat::EthercatStats> {
+        self.stop.store(true, Ordering::Relaxed);
+        self.thread.take()?.join().ok()?.ok()
+    }
+}
+
+impl Drop for InProcessEmulator {
+    fn drop(&mut self) {
+        let _ = self.stop();
+    }
+}
+
+/// Moves the calling thread into network namespace `ns` (`ip netns`' bind mount).
+fn enter_namespace(ns: &str) -> Result<(), String> {
+    use std::os::fd::AsRawFd;
+    let path = format!("/run/netns/{ns}");
+    let f = std::fs::File::open(&path).map_err(|e| format!("{path}: {e}"))?;
+    // SAFETY: a valid namespace descriptor; only this thread changes namespace.
+    let rc = unsafe { libc::setns(f.as_raw_fd(), libc::CLONE_NEWNET) };
+    if rc != 0 {
+        return Err(format!("setns {path}: {}", std::io::Error::last_os_error()));
+    }
+    Ok(())
+}

@@ -381,6 +381,8 @@ pub fn run_sweep_into<D: CyclicDrive>(
         Pacing::Realtime => Schedule::on_grid(period, drive.cycle_grid()),
         Pacing::Lockstep => Schedule::new(period),
     };
+    // Cycles on a drive's own clock: its I/O delay goes into the recording.
+    let on_grid = schedule.grid_phase_ns.is_some();
 
     // The last recorded row: the feedback a held row starts from (filled afterwards).
     let mut last_row = Row {
@@ -520,7 +522,11 @@ pub fn run_sweep_into<D: CyclicDrive>(
     let sidecar = Sidecar {
         sample_rate_hz: Some(fs),
         excitation: Some(plan.excitation.clone()),
-        io_delay_samples: Some(0),
+        io_delay_samples: Some(if on_grid {
+            drive.grid_io_delay_cycles()
+        } else {
+            0
+        }),
         ended_because: (!end.complete).then(|| end.reason.clone()),
         end: Some(end.clone()),
         cycle_counters: Some(CycleCounters {

@@ -103,6 +103,15 @@ pub trait CyclicDrive {
     fn cycle_grid(&self) -> Option<Instant> {
         None
     }
+
+    /// Cycles from a set-point's cycle to the first feedback that shows it acting, when
+    /// the cycles run on [`CyclicDrive::cycle_grid`] (EtherCAT: inputs and outputs latched
+    /// at SYNC0, the frame between two pulses reads the inputs of the one before it: 1).
+    /// The recording's I/O delay. Default 0 (the feedback of cycle k is the state before
+    /// set-point k acts, as on CAN).
+    fn grid_io_delay_cycles(&self) -> u32 {
+        0
+    }
 }
 
 /// Several drives in cyclic synchronous torque mode on one bus, enabled, whose set-points

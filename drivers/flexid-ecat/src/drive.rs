@@ -661,4 +661,10 @@ impl<const S: usize, const P: usize> CyclicDrive for EcatDrive<'_, S, P> {
     fn cycle_grid(&self) -> Option<Instant> {
         self.sync0.map(|e| e.pulse + self.config.send_after_sync0)
     }
+
+    /// 1: a CiA 402 drive latching its process data at SYNC0 applies set-point `k` at the
+    /// pulse after frame `k` and frame `k` reads the inputs of the pulse before it.
+    fn grid_io_delay_cycles(&self) -> u32 {
+        1
+    }
 }

@@ -44,6 +44,8 @@ type Drive = EcatDrive<'static, MAX_SUBDEVICES, MAX_PDI>;
 
 /// One loop's pooled results at one rate.
 struct Pooled {
+    /// The loop thread's `SCHED_FIFO` priority as granted (the last chunk's).
+    granted_fifo: Option<u8>,
     stats: TimingStats,
     cycles: u64,
     late_responses: u64,
@@ -56,6 +58,7 @@ struct Pooled {
 impl Pooled {
     fn new(period_ns: u64) -> Self {
         Pooled {
+            granted_fifo: None,
             stats: TimingStats::new(period_ns),
             cycles: 0,
             late_responses: 0,
@@ -109,9 +112,10 @@ fn run_ethercat(
     let mut stats = TimingStats::new(period_ns);
     let mut servo_from = None;
     let (mut late, mut wkc, mut timeouts, mut other, mut n) = (0, 0, 0, 0, 0u64);
+    let mut granted = None;
     std::thread::scope(|s| {
         s.spawn(|| {
-            setup.apply();
+            granted = setup.apply().fifo_priority;
             let first = first_deadline(phase, period_ns);
             let mut k = 0u64;
             while k < cycles {
@@ -147,6 +151,7 @@ fn run_ethercat(
     into.servo.missed += b.missed - a.missed;
     into.servo.overwritten += b.overwritten - a.overwritten;
     into.servo.longest_missed_run = into.servo.longest_missed_run.max(b.longest_missed_run);
+    into.granted_fifo = granted;
     into.stats.merge(&stats);
     into.cycles += n;
     into.late_responses += late;
@@ -159,9 +164,10 @@ fn run_ethercat(
 fn run_bare(setup: RtSetup, phase: u64, period_ns: u64, cycles: u64, into: &mut Pooled) {
     let mut stats = TimingStats::new(period_ns);
     let mut n = 0;
+    let mut granted = None;
     std::thread::scope(|s| {
         s.spawn(|| {
-            setup.apply();
+            granted = setup.apply().fifo_priority;
             let first = first_deadline(phase, period_ns);
             let mut k = 0u64;
             while k < cycles {
@@ -170,6 +176,7 @@ fn run_bare(setup: RtSetup, phase: u64, period_ns: u64, cycles: u64, into: &mut 
             }
         });
     });
+    into.granted_fifo = granted;
     into.stats.merge(&stats);
     into.cycles += n;
 }
@@ -288,8 +295,8 @@ fn main() {
         md,
         "EtherCAT cycle timing on the veth tier: {secs} s per rate and loop in {chunks} \
          interleaved chunks; {ncpu} CPUs, kernel {kernel}, load average {} at the start. \
-         Loops: SCHED_FIFO 80 (asked); ethercrab tx/rx thread 85; emulated segment and \
-         SYNC0 clock 90.",
+         Asked: loops SCHED_FIFO 80; ethercrab's tx/rx thread 85; the emulated segment and \
+         its SYNC0 clock 90.",
         load.join(" ")
     );
     let mut results = Vec::new();
@@ -303,12 +310,20 @@ fn main() {
         }
     }
     for r in &results {
+        let fifo = |p: Option<u8>| {
+            p.map_or("normal priority (refused)".into(), |p| {
+                format!("SCHED_FIFO {p}")
+            })
+        };
         let _ = writeln!(
             md,
-            "\n{} kHz: bring-up {}; frames at the segment: {}.",
+            "\n{} kHz: bring-up {}; frames at the segment: {}; loops granted: ethercat {}, \
+             bare {}.",
             r.hz / 1000,
             r.bring_up,
-            r.frames
+            r.frames,
+            fifo(r.ecat.granted_fifo),
+            fifo(r.bare.granted_fifo)
         );
     }
     let _ = writeln!(md);

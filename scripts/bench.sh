@@ -47,6 +47,23 @@ for a in "$@"; do
     esac
 done
 
+# 7. The EtherCAT cycle timing on the veth tier (it sets its threads' scheduling itself).
+ecat_stage() {
+    local eexe
+    eexe=$(cargo build --release -p flexid-vdrive --bench ecat_cycle_timing --message-format=json 2>/dev/null |
+        sed -n 's/.*"executable":"\([^"]*ecat_cycle_timing[^"]*\)".*/\1/p' | tail -n 1)
+    if [ -z "$eexe" ] || [ ! -x "$eexe" ]; then
+        cargo build --release -p flexid-vdrive --bench ecat_cycle_timing # shows the error
+        echo "bench: could not find the ecat_cycle_timing executable" >&2
+        exit 1
+    fi
+    "$eexe" "${mode[@]}" --out "$root/target/bench/ecat_cycle_timing.md"
+}
+if [ "${FLEXID_BENCH_ONLY:-}" = ecat ]; then
+    ecat_stage
+    exit 0
+fi
+
 venv="$root/.venv"
 python="${PYTHON:-python3}"
 if [ -x "$venv/bin/python" ] &&
@@ -113,6 +130,7 @@ if [ "${FLEXID_BENCH_ONLY:-}" = manipulator ]; then
     manipulator_stage
     exit 0
 fi
+
 
 data="$root/target/bench/data"
 rm -rf "$data"
@@ -191,3 +209,5 @@ if [ -z "$dexe" ] || [ ! -x "$dexe" ]; then
     exit 1
 fi
 "$dexe" "${mode[@]}" --out "$root/target/bench/daemon_load.md"
+
+ecat_stage

@@ -34,6 +34,18 @@ else
     echo "mosquitto: missing and not root: the MQTT test skips (and fails under CI=true)"
 fi
 
+step "iproute2 for the EtherCAT veth tier (drivers/flexid-vdrive/tests/ecat_veth.rs)"
+# The test makes a network namespace and a veth pair with `ip` (as root); without either it
+# skips, and under CI=true it fails.
+if command -v ip >/dev/null 2>&1; then
+    echo "ip: present"
+elif [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then
+    export DEBIAN_FRONTEND=noninteractive
+    apt-get install -y -q --no-remove iproute2 || { apt-get update -q && apt-get install -y -q --no-remove iproute2; }
+else
+    echo "ip: missing and not root: the veth tier skips (and fails under CI=true)"
+fi
+
 step "chromium and playwright-core for the browser test (tests/daemon_web.rs)"
 if [ -x /usr/bin/chromium ] && command -v npm >/dev/null 2>&1; then
     echo "chromium, node: present"

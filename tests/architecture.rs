@@ -29,10 +29,18 @@ const LAYERS: &[(&str, &str, &[&str])] = &[
         "drivers/flexid-ecat",
         &["flexid-core", "flexid-can", "flexid-canopen"],
     ),
+    // flexid-ecat: `flexid-vdrive --ethercat IFACE` serves its emulated servos on an
+    // interface (issue 18 puts the simulated SubDevice in flexid-vdrive).
     (
         "flexid-vdrive",
         "drivers/flexid-vdrive",
-        &["flexid-core", "flexid-rt", "flexid-can", "flexid-canopen"],
+        &[
+            "flexid-core",
+            "flexid-rt",
+            "flexid-can",
+            "flexid-canopen",
+            "flexid-ecat",
+        ],
     ),
     (
         "flexid-sweep",

@@ -154,12 +154,22 @@ impl SweepOutcome {
 /// feedback is due one period later. A master that falls more than half a period behind
 /// (preempted, a loaded host) restarts the schedule from now, counted as an overrun:
 /// firing the missed slots back to back would give the drive SYNCs closer than a period
-/// and each cycle no time to answer.
+/// and each cycle no time to answer. On a drive's grid ([`CyclicDrive::cycle_grid`]:
+/// EtherCAT's SYNC0, the drive's own clock) the slots start on the grid, and an overrun
+/// skips the slots the loop is behind by (to the grid point nearest to now, waited for
+/// when ahead): the drive went through them holding its last torque, so the loop records
+/// a held row for each ([`Schedule::take_skipped`]) and row k stays the drive's cycle k.
+/// The grid is read once, when the sweep starts (a drive clock drifting against the
+/// host's is not followed).
 pub(crate) struct Schedule {
     map: InstantMap,
     period_ns: u64,
     slot_ns: MonoNs,
+    /// The grid's phase: slots start at `phase_ns` modulo the period.
+    grid_phase_ns: Option<u64>,
     pub(crate) overruns: u64,
+    /// Grid slots skipped by overruns and not yet taken by the loop.
+    skipped: u64,
 }
 
 impl Schedule {
@@ -168,8 +178,42 @@ impl Schedule {
             map: InstantMap::calibrate(),
             period_ns: (period.as_nanos() as u64).max(1),
             slot_ns: clock::now_ns(),
+            grid_phase_ns: None,
             overruns: 0,
+            skipped: 0,
         }
+    }
+
+    /// A schedule whose slots start on `grid` (see the type); the first slot is the grid
+    /// point nearest to now (waited for when ahead). Without a grid, as [`Schedule::new`].
+    pub(crate) fn on_grid(period: Duration, grid: Option<Instant>) -> Self {
+        let mut s = Self::new(period);
+        if let Some(grid) = grid {
+            let (now_ns, now) = (clock::now_ns(), Instant::now());
+            let grid_ns = if grid >= now {
+                now_ns as i128 + (grid - now).as_nanos() as i128
+            } else {
+                now_ns as i128 - (now - grid).as_nanos() as i128
+            };
+            s.grid_phase_ns = Some(grid_ns.rem_euclid(i128::from(s.period_ns)) as u64);
+            s.slot_ns = s.restart_at(now_ns);
+        }
+        s
+    }
+
+    /// The first slot's start on the grid: its point nearest to `now` (slept to when
+    /// ahead); `now` without a grid.
+    fn restart_at(&self, now: MonoNs) -> MonoNs {
+        let Some(phase) = self.grid_phase_ns else {
+            return now;
+        };
+        let p = self.period_ns;
+        let mut slot = now - (now + p - phase % p) % p;
+        if now - slot > p / 2 {
+            slot += p;
+            clock::sleep_until_ns(slot);
+        }
+        slot
     }
 
     /// The deadline of the cycle starting now (the end of its slot).
@@ -177,11 +221,24 @@ impl Schedule {
     pub(crate) fn next_deadline(&mut self) -> Instant {
         let now = clock::now_ns();
         if now > self.slot_ns + self.period_ns / 2 {
-            self.slot_ns = now;
             self.overruns += 1;
+            if self.grid_phase_ns.is_some() {
+                let p = self.period_ns;
+                let behind = (now - self.slot_ns + p / 2) / p;
+                self.slot_ns += behind * p;
+                self.skipped += behind;
+                clock::sleep_until_ns(self.slot_ns);
+            } else {
+                self.slot_ns = now;
+            }
         }
         self.slot_ns += self.period_ns;
         self.map.instant(self.slot_ns)
+    }
+
+    /// The grid slots skipped since the last call (0 without a grid).
+    pub(crate) fn take_skipped(&mut self) -> u64 {
+        std::mem::take(&mut self.skipped)
     }
 
     /// Sleeps until the end of the current slot (absolute).
@@ -320,9 +377,22 @@ pub fn run_sweep_into<D: CyclicDrive>(
     let mut reason = StopReason::Complete;
     let mut stop_cycle = n as u64;
     let mut last_torque = 0.0;
-    let mut schedule = Schedule::new(period);
+    let mut schedule = match plan.pacing {
+        Pacing::Realtime => Schedule::on_grid(period, drive.cycle_grid()),
+        Pacing::Lockstep => Schedule::new(period),
+    };
+    // Cycles on a drive's own clock: its I/O delay goes into the recording.
+    let on_grid = schedule.grid_phase_ns.is_some();
 
-    for k in 0..n {
+    // The last recorded row: the feedback a held row starts from (filled afterwards).
+    let mut last_row = Row {
+        torque_setpoint_nm: 0.0,
+        position_rad: 0.0,
+        velocity_rad_s: 0.0,
+        torque_actual_nm: 0.0,
+    };
+    let mut k = 0;
+    while k < n {
         if stop.load(Ordering::Relaxed) {
             reason = StopReason::Interrupted;
             stop_cycle = k as u64;
@@ -340,6 +410,22 @@ pub fn run_sweep_into<D: CyclicDrive>(
             Pacing::Realtime => schedule.next_deadline(),
             Pacing::Lockstep => now + plan.feedback_timeout,
         };
+        // Slots of a drive's grid this loop was too late for: the drive held the last
+        // torque through them; a held row each (the feedback filled from the neighbours),
+        // so that row k stays the drive's cycle k.
+        for _ in 0..schedule.take_skipped() {
+            if k + 1 >= n {
+                break;
+            }
+            let held = Row {
+                torque_setpoint_nm: last_torque,
+                ..last_row
+            };
+            fill.push(k, &held, false, sink);
+            rows += 1;
+            report_due |= (k + 1) % report_every == 0;
+            k += 1;
+        }
         let fb = match drive.cycle(plan.torque_nm[k], deadline) {
             Ok(fb) => fb,
             Err(e) => {
@@ -348,17 +434,13 @@ pub fn run_sweep_into<D: CyclicDrive>(
                 break;
             }
         };
-        fill.push(
-            k,
-            &Row {
-                torque_setpoint_nm: fb.torque_setpoint_nm,
-                position_rad: fb.position_rad,
-                velocity_rad_s: fb.velocity_rad_s,
-                torque_actual_nm: fb.torque_nm,
-            },
-            fb.fresh,
-            sink,
-        );
+        last_row = Row {
+            torque_setpoint_nm: fb.torque_setpoint_nm,
+            position_rad: fb.position_rad,
+            velocity_rad_s: fb.velocity_rad_s,
+            torque_actual_nm: fb.torque_nm,
+        };
+        fill.push(k, &last_row, fb.fresh, sink);
         rows += 1;
         last_torque = fb.torque_setpoint_nm;
         let lost = fb.counters.lost - base_lost;
@@ -397,6 +479,7 @@ pub fn run_sweep_into<D: CyclicDrive>(
         if plan.pacing == Pacing::Realtime {
             schedule.wait();
         }
+        k += 1;
     }
     let elapsed = t0.elapsed();
     let overruns = schedule.overruns;
@@ -439,7 +522,11 @@ pub fn run_sweep_into<D: CyclicDrive>(
     let sidecar = Sidecar {
         sample_rate_hz: Some(fs),
         excitation: Some(plan.excitation.clone()),
-        io_delay_samples: Some(0),
+        io_delay_samples: Some(if on_grid {
+            drive.grid_io_delay_cycles()
+        } else {
+            0
+        }),
         ended_because: (!end.complete).then(|| end.reason.clone()),
         end: Some(end.clone()),
         cycle_counters: Some(CycleCounters {
@@ -464,5 +551,52 @@ pub fn run_sweep_into<D: CyclicDrive>(
         ramp_cycles,
         ramp_error,
         held_rows: fill.held(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The distance of `ns` from the grid of `phase` (modulo `period`), either side, ns.
+    fn off_grid(ns: u64, phase: u64, period: u64) -> u64 {
+        let d = (ns + period - phase) % period;
+        d.min(period - d)
+    }
+
+    #[test]
+    fn a_schedule_on_a_drive_grid_starts_its_slots_on_it_and_counts_the_slots_an_overrun_skips() {
+        let period = Duration::from_millis(1);
+        let p = 1_000_000;
+        let grid = Instant::now() + Duration::from_micros(2_300);
+        let mut s = Schedule::on_grid(period, Some(grid));
+        let phase = s.grid_phase_ns.expect("a grid");
+        // The grid instant itself, on the monotonic clock, is on the grid (the two clocks
+        // read a few hundred ns apart).
+        let grid_ns = clock::now_ns() + (grid - Instant::now()).as_nanos() as u64;
+        assert!(off_grid(grid_ns, phase, p) < 20_000, "{grid_ns} vs {phase}");
+        assert_eq!(off_grid(s.slot_ns, phase, p), 0);
+        let first = s.slot_ns;
+        s.next_deadline();
+        assert_eq!(s.slot_ns, first + p);
+        // 2.7 periods behind: an overrun; three slots skipped (the loop records a held row
+        // for each), the schedule still on the grid.
+        let behind_from = s.slot_ns;
+        clock::sleep_until_ns(behind_from + 2_700_000);
+        s.next_deadline();
+        assert_eq!(s.overruns, 1);
+        assert_eq!(s.take_skipped(), 3);
+        assert_eq!(s.take_skipped(), 0, "taken once");
+        assert_eq!(
+            s.slot_ns,
+            behind_from + 4 * p,
+            "slot 3 runs, its deadline a period on"
+        );
+        assert_eq!(off_grid(s.slot_ns, phase, p), 0);
+        // Without a grid, the first slot starts now.
+        let t = clock::now_ns();
+        let s = Schedule::on_grid(period, None);
+        assert!(s.slot_ns >= t && s.slot_ns - t < 1_000_000);
+        assert_eq!(s.grid_phase_ns, None);
     }
 }

@@ -94,6 +94,24 @@ pub trait CyclicDrive {
 
     /// Counters since enable.
     fn counters(&self) -> Counters;
+
+    /// Where a drive with a cycle clock of its own (EtherCAT's SYNC0, which latches the
+    /// process data) wants the master's cycles to start: one instant of the grid of
+    /// cycle starts, the others whole periods away. A real-time sweep starts its
+    /// cycles on it. `None` (the default): the master's cycle is the drive's (CAN: the
+    /// drive acts on the master's SYNC).
+    fn cycle_grid(&self) -> Option<Instant> {
+        None
+    }
+
+    /// Cycles from a set-point's cycle to the first feedback that shows it acting, when
+    /// the cycles run on [`CyclicDrive::cycle_grid`] (EtherCAT: inputs and outputs latched
+    /// at SYNC0, the frame between two pulses reads the inputs of the one before it: 1).
+    /// The recording's I/O delay. Default 0 (the feedback of cycle k is the state before
+    /// set-point k acts, as on CAN).
+    fn grid_io_delay_cycles(&self) -> u32 {
+        0
+    }
 }
 
 /// Several drives in cyclic synchronous torque mode on one bus, enabled, whose set-points

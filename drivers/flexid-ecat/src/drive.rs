@@ -26,6 +26,14 @@
 //! acts, as on CAN. No allocation in the cycle (the frame is ethercrab's preallocated
 //! storage; `futures_lite::future::block_on` reuses its thread's parker).
 //!
+//! The exchange is ethercrab's `tx_rx_dc`: the frame also carries the DC reference's
+//! system time (FRMW, the drift compensation of the others). From the exchange with the
+//! shortest round trip the drive locates the SYNC0 pulses on the host's clock and offers
+//! [`CyclicDrive::cycle_grid`]: a real-time sweep then starts its cycles
+//! [`EcatConfig::send_after_sync0`] after a pulse, so each frame arrives between the pulse
+//! that latched its inputs and the one that applies its outputs (a servo on its SYNC0
+//! clock, [`crate::servo::ServoClock::Sync0`]: one cycle of I/O delay).
+//!
 //! The link (ethercrab's `tx_rx_task`, or [`crate::inprocess::SegmentLink`]) runs on another
 //! thread.
 
@@ -64,17 +72,23 @@ pub struct EcatConfig {
     pub sync0_start_delay: Duration,
     /// Most process-data exchanges the walk to Operation enabled may take.
     pub enable_exchanges: u32,
+    /// Where in the SYNC0 cycle a real-time master's cycle starts: this long after a
+    /// pulse ([`CyclicDrive::cycle_grid`]), so that its frame reaches the SubDevices after
+    /// that pulse latched the inputs and before the next one applies the outputs.
+    pub send_after_sync0: Duration,
 }
 
 impl EcatConfig {
     /// Axis 0 at `cycle_hz` (Hz), SYNC0 starting 1 ms after configuration, 20 exchanges to
-    /// enable.
+    /// enable, a real-time cycle starting a fifth of a cycle after SYNC0.
     pub fn at_hz(cycle_hz: f64) -> Self {
+        let cycle = Duration::from_secs_f64(1.0 / cycle_hz);
         Self {
             axis: 0,
-            cycle: Duration::from_secs_f64(1.0 / cycle_hz),
+            cycle,
             sync0_start_delay: Duration::from_millis(1),
             enable_exchanges: 20,
+            send_after_sync0: cycle / 5,
         }
     }
 }
@@ -220,6 +234,25 @@ pub struct EcatDrive<'md, const S: usize, const P: usize> {
     counters: Counters,
     expected_wkc: u16,
     last: Inputs,
+    /// The SYNC0 grid on the host's clock: a pulse's instant, from the exchange with the
+    /// shortest round trip so far (and those within [`SYNC0_RTT_SLACK`] of it).
+    sync0: Option<Sync0Estimate>,
+    /// The DC reference's system time as the last exchange's frame passed it, ns.
+    last_dc_time_ns: u64,
+}
+
+/// Round trips this much longer than the shortest seen still refresh the SYNC0 estimate
+/// (so it follows a drifting clock).
+pub const SYNC0_RTT_SLACK: Duration = Duration::from_micros(5);
+
+/// A SYNC0 pulse located on the host's clock.
+#[derive(Debug, Clone, Copy)]
+struct Sync0Estimate {
+    pulse: Instant,
+    /// The round trip of the exchange it came from.
+    rtt: Duration,
+    /// The shortest round trip seen.
+    best_rtt: Duration,
 }
 
 impl<'md, const S: usize, const P: usize> EcatDrive<'md, S, P> {
@@ -387,6 +420,8 @@ impl<'md, const S: usize, const P: usize> EcatDrive<'md, S, P> {
             cycle: 0,
             counters: Counters::default(),
             last: Inputs::default(),
+            sync0: None,
+            last_dc_time_ns: 0,
         };
         drive.walk(Target::OperationEnabled).await?;
         drive.counters = Counters::default();
@@ -440,11 +475,14 @@ impl<'md, const S: usize, const P: usize> EcatDrive<'md, S, P> {
             out[0..2].copy_from_slice(&cw.0.to_le_bytes());
             out[2..4].copy_from_slice(&torque_permille.to_le_bytes());
         }
+        let sent = Instant::now();
         let response = self
             .group
-            .tx_rx(self.md)
+            .tx_rx_dc(self.md)
             .await
             .map_err(|source| EcatError::Exchange { cycle, source })?;
+        self.last_dc_time_ns = response.extra.dc_system_time;
+        self.locate_sync0(sent, Instant::now(), self.last_dc_time_ns);
         self.exchanges += 1;
         let got = response.working_counter;
         let expected = self.expected_wkc;
@@ -507,6 +545,41 @@ impl<'md, const S: usize, const P: usize> EcatDrive<'md, S, P> {
             .map_err(|source| EcatError::Exchange { cycle, source })?;
         self.last = Inputs::decode(&sd.inputs_raw());
         Ok(())
+    }
+
+    /// Locates the SYNC0 grid on the host's clock from one exchange: sent at `sent`,
+    /// back at `back`, the DC reference's system time `dc_time_ns` (ns) as the frame
+    /// passed it, taken at the middle of the round trip. SYNC0 pulses come at whole
+    /// cycles of system time (ethercrab rounds the start time to them).
+    fn locate_sync0(&mut self, sent: Instant, back: Instant, dc_time_ns: u64) {
+        let rtt = back.saturating_duration_since(sent);
+        let best_rtt = self.sync0.map_or(rtt, |e| e.best_rtt.min(rtt));
+        if self
+            .sync0
+            .is_some_and(|e| rtt > e.best_rtt + SYNC0_RTT_SLACK)
+        {
+            return;
+        }
+        let period_ns = (self.config.cycle.as_nanos() as u64).max(1);
+        let since_pulse = Duration::from_nanos(dc_time_ns % period_ns);
+        let middle = sent + rtt / 2;
+        let pulse = middle.checked_sub(since_pulse).unwrap_or(middle);
+        self.sync0 = Some(Sync0Estimate {
+            pulse,
+            rtt,
+            best_rtt,
+        });
+    }
+
+    /// Where in the SYNC0 cycle the last exchange's frame passed the DC reference: its
+    /// system time after the last pulse, ns (SYNC0 pulses at whole cycles of system time).
+    pub fn last_sync0_phase_ns(&self) -> u64 {
+        self.last_dc_time_ns % (self.config.cycle.as_nanos() as u64).max(1)
+    }
+
+    /// The round trip of the exchange the SYNC0 grid was located from.
+    pub fn sync0_round_trip(&self) -> Option<Duration> {
+        self.sync0.map(|e| e.rtt)
     }
 
     /// The CiA 402 walk back to Switch on disabled (torque 0): the power stage off.
@@ -582,5 +655,16 @@ impl<const S: usize, const P: usize> CyclicDrive for EcatDrive<'_, S, P> {
 
     fn counters(&self) -> Counters {
         self.counters
+    }
+
+    /// A SYNC0 pulse located on the host's clock plus [`EcatConfig::send_after_sync0`].
+    fn cycle_grid(&self) -> Option<Instant> {
+        self.sync0.map(|e| e.pulse + self.config.send_after_sync0)
+    }
+
+    /// 1: a CiA 402 drive latching its process data at SYNC0 applies set-point `k` at the
+    /// pulse after frame `k` and frame `k` reads the inputs of the pulse before it.
+    fn grid_io_delay_cycles(&self) -> u32 {
+        1
     }
 }

@@ -17,6 +17,10 @@
 //!   fieldbus-independent `flexid_canopen::CyclicDrive` the sweep loop runs over.
 //! * [`inprocess`]: drives a [`Segment`] from ethercrab's `PduTx`/`PduRx` (no socket, no
 //!   root): the always-run test tier.
+//! * [`socket_link`] (Linux): serves a [`Segment`] on a network interface through an
+//!   `AF_PACKET` raw socket (the veth tier; `flexid-vdrive --ethercat IFACE`), and
+//!   [`sync0_clock`]: the segment's wall clock and the thread that runs SYNC0 pulses at
+//!   their time (the servo's SYNC0 clock).
 //!
 //! Not emulated yet: segmented SDO transfers, complete access, SDO information, emergencies,
 //! the 3-buffer exchange (one buffer), bit-granular FMMUs, the DC drift control loop (clocks
@@ -33,8 +37,11 @@ pub mod inprocess;
 mod le;
 pub mod segment;
 pub mod servo;
+#[cfg(target_os = "linux")]
+pub mod socket_link;
+pub mod sync0_clock;
 
 pub use drive::{EcatConfig, EcatDrive, EcatError};
 pub use esc::{SubDevice, SubDeviceConfig};
-pub use segment::{Application, FrameReport, Segment};
-pub use servo::{Servo, ServoConfig};
+pub use segment::{Application, CycleStats, FrameReport, Segment};
+pub use servo::{Servo, ServoClock, ServoConfig};

@@ -13,8 +13,15 @@
 //! [`Application::latch_inputs`] as the frame arrives, before the ESC copies the mapped
 //! inputs into its buffer, and [`Application::apply_outputs`] after the frame has passed and
 //! the outputs reached the dictionary. This is the lock-step clock: one process-data
-//! exchange is one drive cycle (the SYNC0-driven clock of the real-time tier is not built
-//! yet).
+//! exchange is one drive cycle.
+//!
+//! SYNC0: every SubDevice whose SYNC0 unit is active generates pulses on its system time;
+//! [`Segment::run_sync0_until`] hands each pulse due up to a segment time to the
+//! application ([`Application::sync0`]), in time order with the frames: [`Segment::process`]
+//! runs the pulses due before the frame arrives first. An application on the SYNC0 clock
+//! (the servo's [`crate::servo::ServoClock::Sync0`]) latches its process data there; a
+//! lock-step one ignores the pulses. Between frames a clock thread
+//! ([`crate::sync0_clock`]) runs them at their time.
 
 use crate::esc::al::AlState;
 use crate::esc::SubDevice;
@@ -32,6 +39,35 @@ pub trait Application: Send + std::fmt::Debug {
     /// The process-data frame has passed (OP): the output objects are in `device`'s
     /// dictionary; act on them for one cycle.
     fn apply_outputs(&mut self, device: &mut SubDevice);
+    /// A SYNC0 pulse of `device`'s DC unit (SAFE-OP or OP). Lock-step applications ignore
+    /// it (the default).
+    fn sync0(&mut self, device: &mut SubDevice) {
+        let _ = device;
+    }
+    /// The application's cycle counters (all zero for an application that keeps none).
+    fn stats(&self) -> CycleStats {
+        CycleStats::default()
+    }
+}
+
+/// Cycle counters of an [`Application`].
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct CycleStats {
+    /// Inputs latched (lock-step: process-data frames in SAFE-OP or OP; SYNC0: pulses in
+    /// SAFE-OP or OP).
+    pub latches: u64,
+    /// Plant cycles stepped (in OP).
+    pub cycles: u64,
+    /// SYNC0 pulses seen (SAFE-OP or OP).
+    pub pulses: u64,
+    /// SYNC0 clock, OP: pulses with no process-data frame since the one before (the
+    /// outputs held: a missed cycle).
+    pub missed: u64,
+    /// SYNC0 clock, OP: frames whose outputs were overwritten by a later frame before a
+    /// pulse applied them (two frames in one cycle).
+    pub overwritten: u64,
+    /// Longest run of consecutive missed cycles.
+    pub longest_missed_run: u64,
 }
 
 /// SubDevices in ring order and the segment clock.
@@ -139,11 +175,45 @@ impl Segment {
         self.frames
     }
 
-    /// Passes `frame` (a whole Ethernet frame) through every SubDevice in order, in place.
-    /// A frame that is not a valid EtherCAT frame is left untouched (a real segment would
-    /// drop it).
+    /// Hands every SYNC0 pulse due up to segment time `segment_ns` (inclusive) to the
+    /// application behind its SubDevice (SAFE-OP or OP); sets the segment time to it.
+    /// Returns the pulses handed over.
+    pub fn run_sync0_until(&mut self, segment_ns: u64) -> u64 {
+        self.set_time_ns(segment_ns);
+        let now = self.time_ns;
+        let mut pulses = 0;
+        for (device, application) in self.devices.iter_mut().zip(self.applications.iter_mut()) {
+            let due = device.take_sync0_pulses(now);
+            pulses += due;
+            let Some(app) = application.as_deref_mut() else {
+                continue;
+            };
+            if device.al_state() < AlState::SafeOp {
+                continue;
+            }
+            for _ in 0..due {
+                app.sync0(device);
+            }
+        }
+        pulses
+    }
+
+    /// Segment time of the next SYNC0 pulse of any SubDevice after the segment time, ns
+    /// (`None` while no SYNC0 unit is active).
+    pub fn next_sync0_ns(&self) -> Option<u64> {
+        self.devices
+            .iter()
+            .filter_map(|d| d.next_sync0_ns(self.time_ns))
+            .min()
+    }
+
+    /// Passes `frame` (a whole Ethernet frame) through every SubDevice in order, in place,
+    /// after the SYNC0 pulses due before it ([`Segment::run_sync0_until`] at the segment
+    /// time). A frame that is not a valid EtherCAT frame is left untouched (a real segment
+    /// would drop it).
     pub fn process(&mut self, frame: &mut [u8]) -> Result<FrameReport, FrameError> {
         let layout = FrameLayout::parse(frame)?;
+        self.run_sync0_until(self.time_ns);
         let mut process_data = false;
         layout.for_each_pdu(frame, |pdu| {
             process_data |= pdu.command.addressing() == Addressing::Logical;
@@ -281,5 +351,52 @@ mod tests {
         assert_eq!(port(1, 1), Some(8_000));
         assert_eq!(port(2, 0), Some(7_000));
         assert_eq!(port(2, 1), Some(0));
+    }
+
+    /// An application that counts the SYNC0 pulses it is given.
+    #[derive(Debug, Default)]
+    struct Pulses(std::sync::Arc<std::sync::atomic::AtomicU64>);
+
+    impl Application for Pulses {
+        fn latch_inputs(&mut self, _: &mut SubDevice) {}
+        fn apply_outputs(&mut self, _: &mut SubDevice) {}
+        fn sync0(&mut self, _: &mut SubDevice) {
+            self.0.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        }
+    }
+
+    #[test]
+    fn sync0_pulses_come_at_their_system_times_and_before_a_later_frame() {
+        let mut s = line(2);
+        let counted = std::sync::Arc::new(std::sync::atomic::AtomicU64::new(0));
+        let id = Identity {
+            vendor_id: 1,
+            product_code: 2,
+            revision: 3,
+            serial: 4,
+        };
+        let device = SubDevice::new(SubDeviceConfig::servo_axis(id, "P")).expect("SII");
+        s.push_with(device, Box::new(Pulses(counted.clone())));
+        assert_eq!(s.next_sync0_ns(), None, "SYNC0 off");
+        // SYNC0 every 250 us from system time 1 ms (the clocks start at 0, no offset).
+        let mut f = build(&[
+            (Command::Bwr, 0x09A0_0000, &250_000u32.to_le_bytes()),
+            (Command::Bwr, 0x0990_0000, &1_000_000u64.to_le_bytes()),
+            (Command::Bwr, 0x0981_0000, &[0x03]),
+        ]);
+        s.process(&mut f).expect("valid frame");
+        assert_eq!(s.run_sync0_until(999_999), 0);
+        assert_eq!(s.next_sync0_ns(), Some(1_000_000));
+        // Three SubDevices, five pulses each up to 2 ms; the application is not called in
+        // INIT.
+        assert_eq!(s.run_sync0_until(2_000_000), 15);
+        assert_eq!(s.run_sync0_until(2_000_000), 0, "each pulse once");
+        assert_eq!(s.next_sync0_ns(), Some(2_250_000));
+        assert_eq!(counted.load(std::sync::atomic::Ordering::Relaxed), 0);
+        // A frame at 2.6 ms runs the pulse of 2.5 ms first.
+        s.set_time_ns(2_600_000);
+        let mut f = build(&[(Command::Brd, 0, &[0, 0])]);
+        s.process(&mut f).expect("valid frame");
+        assert_eq!(s.next_sync0_ns(), Some(2_750_000));
     }
 }

@@ -23,11 +23,24 @@
 //! pairing of the CAN drive (TPDO `k` answers SYNC `k`), a real drive whose inputs are
 //! latched just before the frame and whose outputs act just after it. The statusword of
 //! exchange `k` shows the controlword of exchange `k - 1`.
+//!
+//! That is [`ServoClock::LockStep`], deterministic and as fast as the frames come. With
+//! [`ServoClock::Sync0`] the servo runs on its own clock, the SYNC0 pulses of the ESC's DC
+//! unit at the cycle the MainDevice configured, whatever the frames do. At every pulse
+//! (SAFE-OP or OP) it samples the plant into the inputs (the next frame carries them) and,
+//! in OP, takes the controlword and target torque the last frame left, steps the state
+//! machine and the plant one cycle. A pulse with no frame since the one before is a missed
+//! cycle: the outputs are held (the last torque goes on acting) and counted; after
+//! [`ServoConfig::fault_after_missed_cycles`] in a row the drive faults (torque off,
+//! statusword Fault), as a drive's SYNC / process-data watchdog does. Two frames in one
+//! cycle count as an overwritten set-point. A MainDevice that sends cycle `k` after pulse
+//! `k` and before pulse `k + 1` reads the inputs latched at pulse `k` (the state before
+//! the torque of cycle `k - 1` acts): one cycle of I/O delay against lock-step.
 
 use crate::esc::dictionary::{Mappable, ObjectAccess, ObjectDictionary};
 use crate::esc::sii::Identity;
 use crate::esc::SubDeviceConfig;
-use crate::segment::Application;
+use crate::segment::{Application, CycleStats};
 use crate::SubDevice;
 use flexid_canopen::cia402::{device_transition, Controlword, State, Statusword};
 use flexid_core::plant::physics::Physics;
@@ -64,6 +77,16 @@ pub const MODE_CST: i8 = 10;
 /// Statusword bit 12 in the cyclic synchronous modes: the target is followed.
 pub const SW_TARGET_FOLLOWED: u16 = 1 << 12;
 
+/// What advances the servo's plant.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ServoClock {
+    /// One cycle per process-data frame (deterministic; the in-process tests).
+    #[default]
+    LockStep,
+    /// One cycle per SYNC0 pulse, process data latched at the pulse (real-time sweeps).
+    Sync0,
+}
+
 /// The drive's constants.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ServoConfig {
@@ -73,15 +96,23 @@ pub struct ServoConfig {
     pub peak_torque_nm: f64,
     /// Encoder increments per motor revolution (0x608F:1, with 0x608F:2 = 1).
     pub increments_per_rev: u32,
+    /// What advances the plant.
+    pub clock: ServoClock,
+    /// SYNC0 clock: consecutive missed cycles (pulses in OP without a frame) that fault
+    /// the drive; 0: never (the outputs are held however long).
+    pub fault_after_missed_cycles: u32,
 }
 
 impl Default for ServoConfig {
-    /// flexid-vdrive's defaults: 1 N m rated, 3 N m peak, a 20-bit encoder.
+    /// flexid-vdrive's defaults: 1 N m rated, 3 N m peak, a 20-bit encoder; lock-step; on
+    /// the SYNC0 clock a fault after 100 missed cycles in a row.
     fn default() -> Self {
         Self {
             rated_torque_nm: 1.0,
             peak_torque_nm: 3.0,
             increments_per_rev: 1 << 20,
+            clock: ServoClock::LockStep,
+            fault_after_missed_cycles: 100,
         }
     }
 }
@@ -179,15 +210,6 @@ pub fn statusword(state: State, mode: i8, limited: bool) -> u16 {
     sw
 }
 
-/// Counters of the servo.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-pub struct ServoStats {
-    /// Inputs latched (process-data frames seen in SAFE-OP or OP).
-    pub latches: u64,
-    /// Plant cycles stepped (process-data frames in OP).
-    pub cycles: u64,
-}
-
 /// The simulated CiA 402 servo in cyclic synchronous torque mode.
 #[derive(Debug)]
 pub struct Servo<P> {
@@ -199,7 +221,16 @@ pub struct Servo<P> {
     /// Torque held over the current cycle, N m.
     applied_nm: f64,
     inc_per_rad: f64,
-    stats: ServoStats,
+    stats: CycleStats,
+    /// SYNC0 clock: frames whose outputs arrived since the last pulse.
+    frames_since_pulse: u32,
+    /// SYNC0 clock: the current run of missed cycles.
+    missed_run: u64,
+    /// SYNC0 clock: the watchdog fired (cleared by a fault reset once frames come again).
+    watchdog: bool,
+    /// SYNC0 clock: a frame has reached the outputs in OP (the watchdog is armed by the
+    /// first one, as a sync manager watchdog is).
+    armed: bool,
 }
 
 impl<P: Physics> Servo<P> {
@@ -214,7 +245,11 @@ impl<P: Physics> Servo<P> {
             previous_cw: Controlword::default(),
             limited: false,
             applied_nm: 0.0,
-            stats: ServoStats::default(),
+            stats: CycleStats::default(),
+            frames_since_pulse: 0,
+            missed_run: 0,
+            watchdog: false,
+            armed: false,
         }
     }
 
@@ -228,7 +263,7 @@ impl<P: Physics> Servo<P> {
         self.applied_nm
     }
 
-    pub fn stats(&self) -> ServoStats {
+    pub fn stats(&self) -> CycleStats {
         self.stats
     }
 
@@ -256,8 +291,10 @@ impl<P: Physics> Servo<P> {
     }
 }
 
-impl<P: Physics + std::fmt::Debug> Application for Servo<P> {
-    fn latch_inputs(&mut self, device: &mut SubDevice) {
+impl<P: Physics> Servo<P> {
+    /// Samples the plant into the input objects (statusword, position, velocity, torque,
+    /// mode display); the ESC maps them into the next frame.
+    fn publish_inputs(&mut self, device: &mut SubDevice) {
         self.stats.latches += 1;
         let s = self.physics.sample();
         let rated = self.config.rated_torque_nm;
@@ -276,7 +313,9 @@ impl<P: Physics + std::fmt::Debug> Application for Servo<P> {
         let _ = od.set(object::MODES_DISPLAY, 0, &[mode as u8]);
     }
 
-    fn apply_outputs(&mut self, device: &mut SubDevice) {
+    /// Takes the controlword and target torque in the dictionary, steps the state machine
+    /// (`fault`: a fault is present) and the plant one cycle.
+    fn step_cycle(&mut self, device: &SubDevice, fault: bool) {
         let od = device.dictionary();
         let cw = Controlword(
             od.get(object::CONTROLWORD, 0)
@@ -285,11 +324,81 @@ impl<P: Physics + std::fmt::Debug> Application for Servo<P> {
         );
         let effective = cw.effective(self.previous_cw);
         self.previous_cw = cw;
-        self.state = device_transition(self.state, effective, false);
+        self.state = device_transition(self.state, effective, fault);
         let t = self.setpoint(od);
         self.physics.step(t);
         self.applied_nm = t;
         self.stats.cycles += 1;
+    }
+
+    /// The SYNC0 watchdog at a pulse in OP: counts a pulse without a frame as missed and
+    /// says whether the drive is in fault (the run reached the limit; it stays until
+    /// frames come again).
+    fn watch_frames(&mut self) -> bool {
+        self.armed |= self.frames_since_pulse > 0;
+        if !self.armed {
+            return false;
+        }
+        if self.frames_since_pulse == 0 {
+            self.stats.missed += 1;
+            self.missed_run += 1;
+            self.stats.longest_missed_run = self.stats.longest_missed_run.max(self.missed_run);
+            let limit = u64::from(self.config.fault_after_missed_cycles);
+            if limit > 0 && self.missed_run >= limit {
+                self.watchdog = true;
+            }
+        } else {
+            self.stats.overwritten += u64::from(self.frames_since_pulse - 1);
+            self.missed_run = 0;
+            self.watchdog = false;
+        }
+        self.frames_since_pulse = 0;
+        self.watchdog
+    }
+}
+
+impl<P: Physics> Servo<P> {
+    /// A SYNC0 pulse (the SYNC0 clock only): inputs sampled; in OP (`op`) the outputs the
+    /// last frame left applied for one cycle (held when no frame came: a missed cycle),
+    /// outside OP the plant stepped with no torque.
+    fn on_pulse(&mut self, device: &mut SubDevice, op: bool) {
+        if self.config.clock != ServoClock::Sync0 {
+            return;
+        }
+        self.stats.pulses += 1;
+        self.publish_inputs(device);
+        if op {
+            let fault = self.watch_frames();
+            self.step_cycle(device, fault);
+        } else {
+            self.physics.step(0.0);
+            self.applied_nm = 0.0;
+            self.frames_since_pulse = 0;
+        }
+    }
+}
+
+impl<P: Physics + std::fmt::Debug> Application for Servo<P> {
+    fn latch_inputs(&mut self, device: &mut SubDevice) {
+        if self.config.clock == ServoClock::LockStep {
+            self.publish_inputs(device);
+        }
+    }
+
+    fn apply_outputs(&mut self, device: &mut SubDevice) {
+        match self.config.clock {
+            ServoClock::LockStep => self.step_cycle(device, false),
+            ServoClock::Sync0 => self.frames_since_pulse += 1,
+        }
+    }
+
+    fn sync0(&mut self, device: &mut SubDevice) {
+        let op = device.al_state() == crate::esc::al::AlState::Op;
+        self.on_pulse(device, op);
+    }
+
+    fn stats(&self) -> CycleStats {
+        self.stats
     }
 }
 
@@ -367,6 +476,123 @@ mod tests {
             od.get(object::ENCODER_RESOLUTION, 1),
             Some(&(1u32 << 20).to_le_bytes()[..])
         );
+    }
+
+    fn sync0_servo(fault_after: u32) -> (SubDevice, Servo<LinearChain>) {
+        let (mut d, s) = servo();
+        let config = ServoConfig {
+            clock: ServoClock::Sync0,
+            fault_after_missed_cycles: fault_after,
+            ..ServoConfig::default()
+        };
+        d.dictionary_mut()
+            .set(object::MODES, 0, &[MODE_CST as u8])
+            .expect("mode");
+        (d, Servo::new(config, s.physics))
+    }
+
+    /// A frame on the SYNC0 clock: the outputs reach the dictionary; the inputs it carries
+    /// are the last pulse's (statusword returned).
+    fn frame(d: &mut SubDevice, s: &mut Servo<LinearChain>, cw: u16, permille: i16) -> u16 {
+        s.latch_inputs(d);
+        let od = d.dictionary_mut();
+        let sw = od
+            .get(object::STATUSWORD, 0)
+            .and_then(|b| b.try_into().ok())
+            .map_or(0, u16::from_le_bytes);
+        od.set(object::CONTROLWORD, 0, &cw.to_le_bytes())
+            .expect("cw");
+        od.set(object::TARGET_TORQUE, 0, &permille.to_le_bytes())
+            .expect("torque");
+        s.apply_outputs(d);
+        sw
+    }
+
+    fn position(d: &SubDevice) -> i32 {
+        d.dictionary()
+            .get(object::POSITION_ACTUAL, 0)
+            .and_then(|b| b.try_into().ok())
+            .map_or(0, i32::from_le_bytes)
+    }
+
+    #[test]
+    fn on_the_sync0_clock_the_plant_steps_per_pulse_and_missed_cycles_hold_the_torque() {
+        let (mut d, mut s) = sync0_servo(0);
+        // Frames alone do not advance the plant or the state machine.
+        frame(&mut d, &mut s, 0x0006, 0);
+        frame(&mut d, &mut s, 0x0006, 0);
+        assert_eq!(s.stats().cycles, 0);
+        assert_eq!(s.state(), State::SwitchOnDisabled);
+        // The pulse applies the last frame's controlword; two frames in a cycle: one
+        // set-point overwritten.
+        s.on_pulse(&mut d, true);
+        assert_eq!(s.state(), State::ReadyToSwitchOn);
+        assert_eq!(s.stats().overwritten, 1);
+        frame(&mut d, &mut s, 0x000F, 500);
+        s.on_pulse(&mut d, true);
+        assert_eq!(s.state(), State::OperationEnabled);
+        assert_eq!(s.applied_torque_nm(), 0.5);
+        // The statusword the next frame carries was latched at the pulse, before the
+        // enable acted: the pulse's inputs come first.
+        assert_eq!(frame(&mut d, &mut s, 0x000F, 200) & 0x006F, 0x0021);
+        s.on_pulse(&mut d, true);
+        assert_eq!(s.applied_torque_nm(), 0.2);
+        // Five pulses with no frame: five missed cycles, the torque held, the plant moving.
+        let before = position(&d);
+        for _ in 0..5 {
+            s.on_pulse(&mut d, true);
+            assert_eq!(s.applied_torque_nm(), 0.2, "held");
+        }
+        let st = s.stats();
+        assert_eq!((st.missed, st.longest_missed_run), (5, 5));
+        assert_eq!(st.cycles, 8);
+        assert_eq!(st.pulses, 8);
+        assert!(position(&d) > before + 10, "the plant ran on");
+        assert_eq!(s.state(), State::OperationEnabled, "no watchdog limit");
+        frame(&mut d, &mut s, 0x000F, -100);
+        s.on_pulse(&mut d, true);
+        assert_eq!(s.applied_torque_nm(), -0.1);
+        assert_eq!(s.stats().missed, 5);
+    }
+
+    #[test]
+    fn on_the_sync0_clock_missed_cycles_in_a_row_fault_the_drive() {
+        let (mut d, mut s) = sync0_servo(3);
+        // Pulses before the first frame in OP do not count (the watchdog is not armed).
+        for _ in 0..10 {
+            s.on_pulse(&mut d, true);
+        }
+        assert_eq!(s.stats().missed, 0);
+        for cw in [0x0006, 0x000F] {
+            frame(&mut d, &mut s, cw, 300);
+            s.on_pulse(&mut d, true);
+        }
+        assert_eq!(s.state(), State::OperationEnabled);
+        s.on_pulse(&mut d, true);
+        s.on_pulse(&mut d, true);
+        assert_eq!(s.state(), State::OperationEnabled, "2 missed: held");
+        assert_eq!(s.applied_torque_nm(), 0.3);
+        s.on_pulse(&mut d, true);
+        assert!(s.state().is_fault(), "{:?}", s.state());
+        assert_eq!(s.applied_torque_nm(), 0.0, "torque off");
+        // Fault reaction active, then Fault at the next pulse.
+        s.on_pulse(&mut d, true);
+        s.on_pulse(&mut d, true);
+        assert_eq!(
+            frame(&mut d, &mut s, 0x0080, 0) & 0x004F,
+            0x0008,
+            "Fault shown"
+        );
+        // Frames again and a fault reset: back to Switch on disabled.
+        s.on_pulse(&mut d, true);
+        assert_eq!(s.state(), State::SwitchOnDisabled);
+    }
+
+    #[test]
+    fn a_lockstep_servo_ignores_sync0_pulses() {
+        let (mut d, mut s) = servo();
+        s.on_pulse(&mut d, true);
+        assert_eq!(s.stats(), CycleStats::default());
     }
 
     #[test]

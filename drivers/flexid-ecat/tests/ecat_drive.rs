@@ -23,7 +23,7 @@ use flexid_core::plant::PlantFile;
 use flexid_core::sim::{simulate_position, SimOptions};
 use flexid_ecat::esc::sii::Identity;
 use flexid_ecat::inprocess::{LinkError, SegmentLink, SharedSegment};
-use flexid_ecat::{EcatConfig, EcatDrive, Segment, ServoConfig};
+use flexid_ecat::{EcatConfig, EcatDrive, Segment, ServoClock, ServoConfig};
 use flexid_sweep::{run_sweep, Pacing, StopReason, SweepPlan};
 use futures_lite::future::block_on;
 use std::sync::atomic::AtomicBool;
@@ -268,4 +268,148 @@ fn a_subdevice_dropped_mid_sweep_stops_it_with_the_working_counter_named() {
         "rows up to the drop"
     );
     assert!(outcome.recording.len() < plan.torque_nm.len());
+}
+
+/// `servo_segment(1)` with the servo on its SYNC0 clock, faulting after `fault_after`
+/// missed cycles in a row, and the SYNC0 clock thread running on the link's wall clock.
+fn sync0_bring_up(
+    fault_after: u32,
+) -> (Drive, SharedSegment, flexid_ecat::sync0_clock::SegmentClock) {
+    use flexid_ecat::sync0_clock::{run_sync0_clock, SegmentClock};
+    let p = plant();
+    let config = ServoConfig {
+        clock: ServoClock::Sync0,
+        fault_after_missed_cycles: fault_after,
+        ..ServoConfig::from_plant(&p)
+    };
+    let identity = Identity {
+        vendor_id: 0x0A1D,
+        product_code: 0x0402_0000,
+        revision: 1,
+        serial: 0,
+    };
+    let physics = LinearChain::new(&p.chain, CYCLE_HZ).expect("chain");
+    let (device, servo) = config
+        .build(identity, "FLEXID-SERVO0", physics)
+        .expect("SII");
+    let mut segment = Segment::new();
+    segment.push_with(device, servo);
+    let seg: SharedSegment = Arc::new(Mutex::new(segment));
+    let clock = SegmentClock::start();
+    let ticker = seg.clone();
+    std::thread::spawn(move || {
+        let stop = AtomicBool::new(false);
+        run_sync0_clock(&ticker, clock, &stop)
+    });
+    let storage: &'static PduStorage<MAX_FRAMES, MAX_PDU_DATA> =
+        Box::leak(Box::new(PduStorage::new()));
+    let (tx, rx, pdu_loop) = storage.try_split().expect("storage split once");
+    let md: &'static MainDevice<'static> = Box::leak(Box::new(MainDevice::new(
+        pdu_loop,
+        Timeouts {
+            state_transition: Duration::from_millis(500),
+            ..Timeouts::default()
+        },
+        MainDeviceConfig {
+            dc_static_sync_iterations: 100,
+            ..MainDeviceConfig::default()
+        },
+    )));
+    let link = SegmentLink::new(tx, rx, seg.clone()).with_clock(move || clock.now_ns());
+    std::thread::spawn(move || block_on(link));
+    let group = block_on(md.init_single_group::<MAX_SUBDEVICES, MAX_PDI>(|| 0)).expect("init");
+    let config = EcatConfig {
+        enable_exchanges: 5000,
+        ..EcatConfig::at_hz(CYCLE_HZ)
+    };
+    let drive = EcatDrive::bring_up(md, group, config).expect("bring-up");
+    (drive, seg, clock)
+}
+
+fn servo_stats(seg: &SharedSegment) -> flexid_ecat::CycleStats {
+    seg.lock()
+        .expect("segment")
+        .application(0)
+        .expect("servo")
+        .stats()
+}
+
+/// Cycles on the drive's SYNC0 grid for `span` (one exchange per grid slot).
+fn cycles_on_the_grid(d: &mut Drive, torque_nm: f64, span: Duration) -> u64 {
+    let period = d.cycle_period();
+    let grid = d.cycle_grid().expect("SYNC0 located");
+    let now = Instant::now();
+    let mut next = grid;
+    while next < now {
+        next += period;
+    }
+    let end = next + span;
+    let mut n = 0;
+    while next < end {
+        std::thread::sleep(next.saturating_duration_since(Instant::now()));
+        d.cycle(torque_nm, next + period).expect("cycle");
+        next += period;
+        n += 1;
+    }
+    n
+}
+
+#[test]
+fn on_the_sync0_clock_the_plant_runs_per_pulse_and_a_master_that_stops_shows_as_missed_cycles() {
+    let (mut d, seg, clock) = sync0_bring_up(100);
+    assert!(d.cycle_grid().is_some(), "SYNC0 located from the DC time");
+    // 20 ms of cycles on the grid with 0.2 N m: the exchanges pass between the pulses.
+    cycles_on_the_grid(&mut d, 0.2, Duration::from_millis(20));
+    let ta = clock.now_ns();
+    let before = servo_stats(&seg);
+    let tb = clock.now_ns();
+    // The master stops for 10 ms: the SYNC0 clock goes on, the servo holds 0.2 N m.
+    std::thread::sleep(Duration::from_millis(10));
+    let tc = clock.now_ns();
+    let fb = d
+        .cycle(0.2, Instant::now() + Duration::from_millis(5))
+        .expect("cycle after the pause");
+    let after = servo_stats(&seg);
+    let td = clock.now_ns();
+    let pulses = |from: u64, to: u64| (to - from) as f64 * 1e-9 * CYCLE_HZ;
+    let stepped = after.cycles - before.cycles;
+    let missed = after.missed - before.missed;
+    eprintln!(
+        "pause of 10 ms: {stepped} plant cycles, {missed} missed ({:.1} to {:.1} pulses of \
+         wall time); torque actual {:.3} N m",
+        pulses(tb, tc),
+        pulses(ta, td),
+        fb.torque_nm
+    );
+    // The plant advanced one cycle per pulse of wall time, not per frame.
+    assert!(
+        stepped as f64 >= pulses(tb, tc) - 1.0 && stepped as f64 <= pulses(ta, td) + 1.0,
+        "{stepped} cycles for {:.1} to {:.1} pulses",
+        pulses(tb, tc),
+        pulses(ta, td)
+    );
+    assert!(missed >= 35, "{missed} missed cycles in a 10 ms pause");
+    assert_eq!(fb.state, Some(State::OperationEnabled), "held, not faulted");
+    assert!(
+        (fb.torque_nm - 0.2).abs() < 1e-3,
+        "the torque held: {}",
+        fb.torque_nm
+    );
+    // A pause past the watchdog (100 cycles, 25 ms): the drive faults, torque off.
+    std::thread::sleep(Duration::from_millis(40));
+    let mut fault = None;
+    for _ in 0..5 {
+        match d.cycle(0.2, Instant::now() + Duration::from_millis(5)) {
+            Err(e) => {
+                fault = Some(e.to_string());
+                break;
+            }
+            Ok(_) => std::thread::sleep(Duration::from_micros(300)),
+        }
+    }
+    let fault = fault.expect("the drive faulted");
+    eprintln!("after a 40 ms pause: {fault}");
+    assert!(fault.contains("drive fault"), "{fault}");
+    let s = servo_stats(&seg);
+    assert!(s.longest_missed_run >= 100, "{s:?}");
 }

@@ -17,10 +17,14 @@
 //!   (the linearised flexible manipulator of `flexid_core::manipulator`).
 //! * [`runner`]: the blocking [`Runner`] over any `flexid_can::CanBus`.
 //! * [`config`]: the plant file's `[drive]` section and [`DriveConfig`].
+//! * `ethercat` (Linux): the same plant behind emulated EtherCAT SubDevices (flexid-ecat's
+//!   ESC and CiA 402 servo), served on a network interface (`--ethercat IFACE`).
 
 pub mod cia402;
 pub mod config;
 pub mod drive;
+#[cfg(target_os = "linux")]
+pub mod ethercat;
 pub mod heartbeat;
 pub mod limits;
 pub mod node;

@@ -149,3 +149,29 @@ fn fifo_priority_is_applied_or_its_refusal_named() {
         assert!(err.contains("SCHED_FIFO priority 50 not granted"), "{err}");
     }
 }
+
+#[test]
+fn ethercat_on_a_missing_interface_exits_1_naming_it_and_bad_options_exit_2() {
+    let out = Command::new(BIN)
+        .args(["--ethercat", "flexid-none0"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    // As root: no such interface; otherwise: the capability it needs.
+    assert!(
+        err.contains("flexid-none0")
+            && (err.contains("no such interface") || err.contains("CAP_NET_RAW")),
+        "{err}"
+    );
+    for (args, says) in [
+        (&["--ethercat", "x0", "--axes", "0"][..], "--axes 0"),
+        (&["--ethercat", "x0", "--cycle-hz", "0"][..], "--cycle-hz 0"),
+        (&["--ethercat", "x0", "--node", "5"][..], "--node"),
+    ] {
+        let out = Command::new(BIN).args(args).output().unwrap();
+        assert_eq!(out.status.code(), Some(2), "{args:?}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(says), "{args:?}: {err}");
+    }
+}

@@ -92,6 +92,9 @@ pub struct SubDevice {
     clock_origin_ns: u64,
     frame: FrameTimes,
     last_mailbox: Option<Outcome>,
+    /// SYNC0 pulses handed out by [`SubDevice::take_sync0_pulses`] and the configuration
+    /// they were counted under.
+    sync0_taken: Option<(Sync0, u64)>,
 }
 
 impl SubDevice {
@@ -111,6 +114,7 @@ impl SubDevice {
             clock_origin_ns: config.clock_origin_ns,
             frame: FrameTimes::default(),
             last_mailbox: None,
+            sync0_taken: None,
         };
         device.esc.write_to(&mut device.memory);
         device.sii.reset(&mut device.memory);
@@ -175,6 +179,32 @@ impl SubDevice {
     /// SYNC0 as the MainDevice configured it, if active.
     pub fn sync0(&self) -> Option<Sync0> {
         Sync0::configured(&self.memory)
+    }
+
+    /// The SYNC0 pulses generated since the last call, up to segment time `segment_ns`
+    /// (inclusive): the SYNC0 unit as the application behind the ESC sees it. Pulses
+    /// before SYNC0 was first seen active, or under an earlier configuration, are not
+    /// counted; none while SYNC0 is off.
+    pub fn take_sync0_pulses(&mut self, segment_ns: u64) -> u64 {
+        let Some(sync0) = self.sync0() else {
+            self.sync0_taken = None;
+            return 0;
+        };
+        let until = sync0.pulses_until(self.system_time_at(segment_ns));
+        let taken = match self.sync0_taken {
+            Some((seen, taken)) if seen == sync0 => taken,
+            _ => until,
+        };
+        self.sync0_taken = Some((sync0, until.max(taken)));
+        until.saturating_sub(taken)
+    }
+
+    /// Segment time of the next SYNC0 pulse after segment time `segment_ns`, ns (`None`
+    /// while SYNC0 is off).
+    pub fn next_sync0_ns(&self, segment_ns: u64) -> Option<u64> {
+        let sync0 = self.sync0()?;
+        let now = self.system_time_at(segment_ns);
+        Some(segment_ns + (sync0.next_after(now) - now))
     }
 
     /// System time at segment time `segment_ns` (ns).

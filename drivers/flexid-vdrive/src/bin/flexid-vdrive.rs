@@ -4,7 +4,17 @@
 //! flexid-vdrive --bus udp[:GROUP[:PORT]] | socketcan:IFACE [--node 5] [--plant P.toml]
 //!               [--clock lockstep|realtime] [--bitrate 1000000] [--fifo-priority 1..=99]
 //! flexid-vdrive --robot [FLEX.toml] [--pose NAME] [--first-node 2] [--deviation 0.3] ...
+//! flexid-vdrive --ethercat IFACE [--plant P.toml] [--axes 1] [--cycle-hz HZ]
+//!               [--clock lockstep|realtime] [--fault-after-missed 100] [--fifo-priority 1..=99]
 //! ```
+//!
+//! With `--ethercat`, emulated EtherCAT SubDevices (CiA 402 servos in CST, one per
+//! `--axes`, each in front of the plant's linear chain discretised at `--cycle-hz`,
+//! default the plant file's sample rate) answer a MainDevice on the interface (an
+//! `AF_PACKET` socket: needs `CAP_NET_RAW`); `--clock realtime` runs the servos on their
+//! SYNC0 clock (one cycle per SYNC0 pulse, a frame-less pulse a missed cycle), `lockstep`
+//! one cycle per process-data frame. Prints `flexid-vdrive: N EtherCAT SubDevice(s) ready
+//! on IFACE` once the socket is open, and on exit its counters on stderr.
 //!
 //! With `--robot`, a whole robot: one drive per axis (nodes `--first-node ..`), all in front
 //! of one coupled plant, the robot's flexible model linearised at the pose (see
@@ -90,6 +100,21 @@ struct Cli {
     /// by its own factor seeded by `--seed` (0: the file's values).
     #[arg(long, default_value_t = 0.0, requires = "robot")]
     deviation: f64,
+    /// Serve emulated EtherCAT SubDevices (CiA 402 servos) on this network interface
+    /// instead of a CAN drive (Linux, CAP_NET_RAW).
+    #[arg(long, conflicts_with_all = ["robot", "bus", "node", "bitrate"])]
+    ethercat: Option<String>,
+    /// EtherCAT: servos in the line.
+    #[arg(long, default_value_t = 1, requires = "ethercat")]
+    axes: usize,
+    /// EtherCAT: the cycle the plant is discretised at [Hz] (the MainDevice's SYNC0
+    /// rate); default: the plant file's sample rate.
+    #[arg(long, requires = "ethercat")]
+    cycle_hz: Option<f64>,
+    /// EtherCAT, `--clock realtime`: consecutive missed cycles that fault a servo (0:
+    /// never).
+    #[arg(long, default_value_t = 100, requires = "ethercat")]
+    fault_after_missed: u32,
 }
 
 /// What this process simulates.
@@ -203,6 +228,94 @@ fn run<B: CanBus, N: BusNode>(mut runner: Runner<B, N>, what: &str, clock: Clock
     }
 }
 
+/// `--ethercat IFACE`: the servos of the plant file on the interface until SIGTERM/SIGINT.
+#[cfg(target_os = "linux")]
+fn serve_ethercat(cli: &Cli, plant: &DrivePlant, iface: &str) -> ExitCode {
+    use flexid_vdrive::ethercat::{self, EthercatOptions};
+    let cycle_hz = cli
+        .cycle_hz
+        .unwrap_or(plant.plant.measurement.sample_rate_hz);
+    if !(cycle_hz.is_finite() && (1.0..=100_000.0).contains(&cycle_hz)) {
+        eprintln!("flexid-vdrive: --cycle-hz {cycle_hz}: must be 1..=100000");
+        return ExitCode::from(2);
+    }
+    if plant.plant.effects.any() {
+        eprintln!(
+            "flexid-vdrive: note: the plant's [effects] are not simulated on EtherCAT (its \
+             linear chain is)"
+        );
+    }
+    let options = EthercatOptions {
+        axes: cli.axes,
+        cycle_hz,
+        clock: match cli.clock {
+            Clock::Lockstep => flexid_ecat::ServoClock::LockStep,
+            Clock::Realtime => flexid_ecat::ServoClock::Sync0,
+        },
+        fault_after_missed_cycles: cli.fault_after_missed,
+    };
+    let segment = match ethercat::servo_segment(plant, &options) {
+        Ok(s) => s,
+        Err(e) => {
+            eprintln!("flexid-vdrive: {e}");
+            return ExitCode::from(2);
+        }
+    };
+    let clock = flexid_ecat::sync0_clock::SegmentClock::start();
+    let mut link = match flexid_ecat::socket_link::SocketLink::open(iface, segment.clone(), clock) {
+        Ok(l) => l,
+        Err(e) => {
+            eprintln!("flexid-vdrive: {e}");
+            return ExitCode::from(1);
+        }
+    };
+    let setup = match cli.fifo_priority {
+        Some(p) => {
+            let setup = flexid_rt::RtSetup::realtime(p);
+            for r in &setup.apply().refused {
+                eprintln!("flexid-vdrive: {r}");
+            }
+            setup
+        }
+        None => flexid_rt::RtSetup::none(),
+    };
+    println!(
+        "flexid-vdrive: {} EtherCAT SubDevice(s) ready on {iface} ({cycle_hz} Hz, {:?} clock)",
+        options.axes, options.clock
+    );
+    use std::io::Write;
+    let _ = std::io::stdout().flush();
+    match ethercat::serve(&mut link, &segment, clock, &STOP, setup) {
+        Ok(s) => {
+            eprintln!(
+                "flexid-vdrive: frames received {}, returned {}, rejected {}; SYNC0 pulses {}, \
+                 cycles {}, missed cycles {} (longest run {}), overwritten set-points {}; \
+                 SYNC0 wake-up lateness max {:.1} us",
+                s.link.received,
+                s.link.returned,
+                s.link.rejected,
+                s.servos.pulses,
+                s.servos.cycles,
+                s.servos.missed,
+                s.servos.longest_missed_run,
+                s.servos.overwritten,
+                s.clock.max_late_ns as f64 / 1e3
+            );
+            ExitCode::SUCCESS
+        }
+        Err(e) => {
+            eprintln!("flexid-vdrive: {e}");
+            ExitCode::from(1)
+        }
+    }
+}
+
+#[cfg(not(target_os = "linux"))]
+fn serve_ethercat(_: &Cli, _: &DrivePlant, _: &str) -> ExitCode {
+    eprintln!("flexid-vdrive: --ethercat is Linux only");
+    ExitCode::from(2)
+}
+
 fn main() -> ExitCode {
     tracing_subscriber::fmt()
         .with_env_filter(
@@ -251,6 +364,9 @@ fn main() -> ExitCode {
     unsafe {
         libc::signal(libc::SIGTERM, on_signal as *const () as libc::sighandler_t);
         libc::signal(libc::SIGINT, on_signal as *const () as libc::sighandler_t);
+    }
+    if let Some(iface) = &cli.ethercat {
+        return serve_ethercat(&cli, &plant, iface);
     }
     let clock = match cli.clock {
         Clock::Lockstep => ClockMode::LockStep,

@@ -15,6 +15,7 @@
 //!   core's plant physics, the same drive as flexid-vdrive's on CAN.
 //! * [`drive`]: [`EcatDrive`], a CiA 402 axis in CST on an ethercrab group in OP, the
 //!   fieldbus-independent `flexid_canopen::CyclicDrive` the sweep loop runs over.
+//! * [`profile`]: the firmware profile chosen from the SubDevice's SII identity.
 //! * [`inprocess`]: drives a [`Segment`] from ethercrab's `PduTx`/`PduRx` (no socket, no
 //!   root): the always-run test tier.
 //!
@@ -31,10 +32,12 @@ pub mod esc;
 pub mod frame;
 pub mod inprocess;
 mod le;
+pub mod profile;
 pub mod segment;
 pub mod servo;
 
 pub use drive::{EcatConfig, EcatDrive, EcatError};
 pub use esc::{SubDevice, SubDeviceConfig};
+pub use profile::ProfileChoice;
 pub use segment::{Application, FrameReport, Segment};
 pub use servo::{Servo, ServoConfig};

@@ -16,6 +16,9 @@
 //! * [`drive`]: [`EcatDrive`], a CiA 402 axis in CST on an ethercrab group in OP, the
 //!   fieldbus-independent `flexid_canopen::CyclicDrive` the sweep loop runs over.
 //! * [`profile`]: the firmware profile chosen from the SubDevice's SII identity.
+//! * [`emulated`]: a line of emulated servos in front of a plant file.
+//! * [`session`]: one MainDevice session (storage, link thread, discovery, bring-up, the
+//!   drive handed to the caller, the link stopped), over the emulated line or an interface.
 //! * [`inprocess`]: drives a [`Segment`] from ethercrab's `PduTx`/`PduRx` (no socket, no
 //!   root): the always-run test tier.
 //!
@@ -28,6 +31,7 @@
 //! emulated dictionary enforces as CiA 301 does.
 
 pub mod drive;
+pub mod emulated;
 pub mod esc;
 pub mod frame;
 pub mod inprocess;
@@ -35,9 +39,11 @@ mod le;
 pub mod profile;
 pub mod segment;
 pub mod servo;
+pub mod session;
 
 pub use drive::{EcatConfig, EcatDrive, EcatError};
 pub use esc::{SubDevice, SubDeviceConfig};
 pub use profile::ProfileChoice;
 pub use segment::{Application, FrameReport, Segment};
 pub use servo::{Servo, ServoConfig};
+pub use session::{with_drive, Link, SessionDrive, SessionError};

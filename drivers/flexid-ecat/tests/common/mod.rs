@@ -8,6 +8,7 @@ use ethercrab::{MainDevice, MainDeviceConfig, PduStorage, Timeouts};
 use flexid_core::excitation::MultisineDesign;
 use flexid_core::plant::physics::LinearChain;
 use flexid_core::plant::PlantFile;
+use flexid_ecat::emulated::identity;
 use flexid_ecat::esc::sii::Identity;
 use flexid_ecat::inprocess::{LinkError, SegmentLink, SharedSegment};
 use flexid_ecat::{Application, EcatConfig, EcatDrive, EcatError, Segment, ServoConfig, SubDevice};
@@ -28,16 +29,6 @@ pub type Drive = EcatDrive<'static, MAX_SUBDEVICES, MAX_PDI>;
 
 pub fn plant() -> PlantFile {
     PlantFile::parse(PLANT, "plants/e2e_3mass.toml").expect("plant file")
-}
-
-/// The identity of the test servos (serial `serial`).
-pub fn identity(serial: u32) -> Identity {
-    Identity {
-        vendor_id: 0x0A1D,
-        product_code: 0x0402_0000,
-        revision: 1,
-        serial,
-    }
 }
 
 /// Servo `i` of `config` in front of the plant file's chain stepped at `CYCLE_HZ`.

@@ -5,7 +5,7 @@
 //! * `flexid identify REC.csv [--masses N] [--json OUT.json]`
 //! * `flexid bode REC.csv --out bode.svg`
 //! * `flexid excite multisine|chirp|stepped ... --out EXC.csv`
-//! * `flexid sweep --bus udp[:GROUP[:PORT]]|vcan0|socketcan:IFACE --node 5 ...` (see [`sweep::SweepArgs`])
+//! * `flexid sweep --bus udp[:GROUP[:PORT]]|vcan0|socketcan:IFACE|ethercat:IFACE|ethercat:emulated --node 5 ...` (see [`sweep::SweepArgs`])
 
 mod commands;
 pub mod daemon_client;
@@ -19,6 +19,7 @@ mod robot;
 mod robot_bus;
 pub mod sweep;
 mod sweep_args;
+mod sweep_ethercat;
 #[cfg(test)]
 mod sweep_tests;
 

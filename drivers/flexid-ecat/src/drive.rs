@@ -255,6 +255,8 @@ pub struct EcatDrive<'md, const S: usize, const P: usize> {
     config: EcatConfig,
     scaling: Scaling,
     profile: Profile,
+    /// The driven axis's SII identity (vendor id, product code, revision, serial).
+    identity: Identity,
     unwrap: PositionUnwrap,
     previous_cw: Controlword,
     /// Exchanges since bring-up began (the walk included).
@@ -304,6 +306,7 @@ impl<'md, const S: usize, const P: usize> EcatDrive<'md, S, P> {
         }
         let mut scaling = None;
         let mut profile = None;
+        let mut sii_identity = Identity::default();
         for position in 0..len {
             let sd = group
                 .subdevice(md, position)
@@ -327,7 +330,9 @@ impl<'md, const S: usize, const P: usize> EcatDrive<'md, S, P> {
                     product_code: sii.product_id,
                     revision: sii.revision,
                     serial: sii.serial,
-                    ..Identity::default()
+                    // 0x1000 is not read: the CST mapping below fails on anything but a
+                    // CiA 402 drive
+                    device_type: 0x0002_0192,
                 };
                 let chosen = choose(profiles, &identity, config.profile, config.cycle).map_err(
                     |source| EcatError::Profile {
@@ -338,6 +343,7 @@ impl<'md, const S: usize, const P: usize> EcatDrive<'md, S, P> {
                     },
                 )?;
                 profile = Some(chosen);
+                sii_identity = identity;
             }
             for (assign, pdo, entries) in [
                 (0x1C12u16, 0x1600u16, &RX_PDO[..]),
@@ -458,6 +464,7 @@ impl<'md, const S: usize, const P: usize> EcatDrive<'md, S, P> {
             config,
             scaling,
             profile,
+            identity: sii_identity,
             unwrap: PositionUnwrap::default(),
             previous_cw: Controlword::default(),
             exchanges: 0,
@@ -625,6 +632,12 @@ impl<'md, const S: usize, const P: usize> EcatDrive<'md, S, P> {
     /// The group, e.g. for its SubDevices' identities.
     pub fn group(&self) -> &OpGroup<S, P> {
         &self.group
+    }
+
+    /// The driven axis's SII identity (vendor id, product code, revision, serial; the device
+    /// type is not read, given as a CiA 402 servo's 0x00020192).
+    pub fn identity(&self) -> Identity {
+        self.identity
     }
 
     /// The driven axis's firmware profile.

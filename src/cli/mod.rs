@@ -235,7 +235,12 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
         Command::Simulate(a) => commands::simulate(&a),
         Command::Demo(a) => demo::demo(&a),
         Command::Import(a) => commands::import(&a),
-        Command::Sweep(a) => sweep::sweep(&a),
+        Command::Sweep(a) => match sweep_ethercat::EcatTarget::parse(&a.bus) {
+            Some(target) if a.daemon.daemon.is_none() => {
+                sweep_ethercat::sweep_run_ethercat(&a, &target).map(|_| ())
+            }
+            _ => sweep::sweep(&a),
+        },
         Command::Daemon(a) => crate::daemon::run(&a.config).map_err(|e| CliError {
             message: e.to_string(),
             code: e.exit_code(),

@@ -1,5 +1,5 @@
-//! `flexid sweep`: one measurement on one axis over CAN (EtherCAT: [`super::sweep_ethercat`]),
-//! from bring-up to the identified chain. The logic is in [`crate::sweep`]; this is argument handling, the bus and files.
+//! `flexid sweep`: one measurement on one axis over CAN, from bring-up to the identified
+//! chain (EtherCAT: `sweep_ethercat`, chosen by the command's dispatch in `cli`). The logic is in [`crate::sweep`]; this is argument handling, the bus and files.
 
 use super::excite::{generate, ExciteArgs, ExciteKind, MultisineArgs};
 use super::{CliError, ModelArgs};
@@ -298,9 +298,6 @@ fn save(outcome: &mut SweepOutcome, info: DriveInfo, out: &Path) -> Result<PathB
 
 /// The measurement and identification; `identify` false stops after saving.
 pub fn sweep_run(a: &SweepArgs) -> Result<SweepRun, CliError> {
-    if let Some(target) = super::sweep_ethercat::EcatTarget::parse(&a.bus) {
-        return super::sweep_ethercat::sweep_run_ethercat(a, &target);
-    }
     let spec = BusSpec::parse(&a.bus).map_err(CliError::input)?;
     if !(1..=127).contains(&a.node) {
         return Err(CliError::input(format!(

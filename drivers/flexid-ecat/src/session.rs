@@ -85,6 +85,13 @@ pub fn with_drive<R>(
         .map_err(|()| SessionError::Link("PDU storage already split".into()))?;
     let timeouts = Timeouts {
         state_transition: Duration::from_millis(2000),
+        // The emulated link loses no frame, it can only be late (a loaded host deschedules
+        // its thread): a long PDU timeout keeps a lock-step sweep going; a line keeps
+        // ethercrab's default, so a lost frame ends the sweep quickly.
+        pdu: match link {
+            Link::Emulated(_) => Duration::from_secs(1),
+            Link::Interface(_) => Timeouts::default().pdu,
+        },
         ..Timeouts::default()
     };
     let md_config = MainDeviceConfig {
@@ -112,7 +119,9 @@ pub fn with_drive<R>(
             Running::Emulated(l) => block_on(l).map_err(|e: LinkError| e.to_string()),
             Running::Interface(f) => block_on(f).map(|_| ()).map_err(|e| e.to_string()),
         });
-        let outcome = (|| {
+        // A panic in `run` must still stop the link (else the scope waits for it forever):
+        // caught here, re-raised once the link is joined.
+        let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
             let group = block_on(
                 md.init_single_group::<MAX_SUBDEVICES, MAX_PDI>(ethercrab::std::ethercat_now),
             )
@@ -123,7 +132,7 @@ pub fn with_drive<R>(
             let drive = EcatDrive::bring_up_with(&md, group, config, profiles)
                 .map_err(SessionError::BringUp)?;
             Ok(run(drive))
-        })();
+        }));
         // SAFETY: `run` has returned and dropped the drive and its group (the group is
         // never used again), and every exchange waited for its frame or its timeout, so no
         // frame is in flight when the storage is released; the link sees the exit flag
@@ -132,6 +141,7 @@ pub fn with_drive<R>(
         let link = link
             .join()
             .map_err(|_| SessionError::Link("the link thread panicked".into()))?;
+        let outcome = outcome.unwrap_or_else(|panic| std::panic::resume_unwind(panic));
         match (outcome, link) {
             (Err(e), _) => Err(e),
             (Ok(_), Err(e)) => Err(SessionError::Link(e)),

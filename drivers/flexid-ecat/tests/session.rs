@@ -69,3 +69,21 @@ fn an_interface_that_cannot_be_opened_names_it_and_cap_net_raw() {
     assert!(text.contains("EtherCAT interface flexid-none0"), "{text}");
     assert!(text.contains("CAP_NET_RAW"), "{text}");
 }
+
+#[test]
+fn a_panic_in_the_session_stops_the_link_and_reaches_the_caller() {
+    let segment = servo_line(&common::plant(), 1, 4000.0).expect("line");
+    let caught = std::panic::catch_unwind(|| {
+        with_drive(
+            Link::Emulated(segment),
+            EcatConfig::at_hz(4000.0),
+            &ProfileSet::builtin(),
+            |_| panic!("the caller's code failed"),
+        )
+    });
+    let panic = caught.expect_err("the panic reaches the caller");
+    assert_eq!(
+        panic.downcast_ref::<&str>().copied(),
+        Some("the caller's code failed")
+    );
+}

@@ -84,8 +84,10 @@ pub fn try_bring_up(segment: SharedSegment, config: EcatConfig) -> Result<Rig, E
     let storage: &'static PduStorage<MAX_FRAMES, MAX_PDU_DATA> =
         Box::leak(Box::new(PduStorage::new()));
     let (tx, rx, pdu_loop) = storage.try_split().expect("storage split once");
+    // a loaded host may deschedule the link thread: late frames, never lost ones
     let timeouts = Timeouts {
         state_transition: Duration::from_millis(500),
+        pdu: Duration::from_secs(1),
         ..Timeouts::default()
     };
     let md_config = MainDeviceConfig {

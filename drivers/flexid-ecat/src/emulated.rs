@@ -16,6 +16,11 @@ use thiserror::Error;
 pub const VENDOR_ID: u32 = 0x0000_0A1D;
 /// SII product code of the emulated servo.
 pub const PRODUCT_CODE: u32 = 0x0402_0000;
+/// The emulated line's process-data watchdog, in 100 us units: 2 s. The servos run in
+/// lock-step (one cycle per frame) while the watchdog counts wall time, so a loaded host
+/// that deschedules the master for longer than a real ESC's 100 ms would trip it without
+/// any fault of the sweep; 2 s still catches a master that stopped.
+pub const LOCKSTEP_WATCHDOG_UNITS: u16 = 20_000;
 
 /// Why the emulated line could not be built.
 #[derive(Debug, Error)]
@@ -69,6 +74,8 @@ pub fn servo_line(
                 physics,
             )
             .map_err(|source| EmulatedError::Sii { position, source })?;
+        let mut device = device;
+        device.set_sm_watchdog_time(LOCKSTEP_WATCHDOG_UNITS);
         segment.push_with(device, servo);
     }
     Ok(Arc::new(Mutex::new(segment)))

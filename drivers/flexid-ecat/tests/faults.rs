@@ -119,6 +119,12 @@ fn a_wrong_working_counter_is_a_bus_error_with_expected_and_got() {
 #[test]
 fn process_data_stopped_past_the_watchdog_is_an_al_error_with_its_code() {
     let seg = servo_segment(1);
+    // A real ESC's power-up watchdog: 1000 units of 100 us.
+    seg.lock()
+        .expect("segment")
+        .subdevice_mut(0)
+        .expect("servo")
+        .set_sm_watchdog_time(1000);
     let mut rig = bring_up(seg.clone());
     let plan = plan(400, 6);
     // The master stalls 150 ms: longer than the ESC's 100 ms sync manager watchdog.
@@ -181,7 +187,8 @@ impl Application for Slow {
 
 #[test]
 fn exchanges_ending_after_their_deadline_in_a_row_are_missed_cycles() {
-    let (device, servo) = servo(&ServoConfig::from_plant(&common::plant()), 0);
+    let (mut device, servo) = servo(&ServoConfig::from_plant(&common::plant()), 0);
+    device.set_sm_watchdog_time(flexid_ecat::emulated::LOCKSTEP_WATCHDOG_UNITS);
     let delay_us = Arc::new(Mutex::new(0));
     let mut segment = flexid_ecat::Segment::new();
     segment.push_with(

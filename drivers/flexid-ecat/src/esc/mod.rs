@@ -169,6 +169,16 @@ impl SubDevice {
         self.store_al_status();
     }
 
+    /// Sets the sync manager watchdog time (0x0420) in watchdog units (100 us with the
+    /// power-up divider; 0 switches it off), as a SubDevice's EEPROM or PDI configures it.
+    pub fn set_sm_watchdog_time(&mut self, units: u16) {
+        let _ = le::put_u16(
+            &mut self.memory,
+            usize::from(registers::SM_WATCHDOG_TIME),
+            units,
+        );
+    }
+
     /// The sync manager watchdog time from registers 0x0400 and 0x0420, ns; `None` when
     /// switched off (0x0420 = 0).
     pub fn sm_watchdog_ns(&self) -> Option<u64> {

@@ -44,11 +44,13 @@ pub fn servo_segment(n: usize) -> SharedSegment {
     servo_segment_with(n, &ServoConfig::from_plant(&plant()))
 }
 
-/// `n` servos of `config` in a line.
+/// `n` servos of `config` in a line, with the emulated line's long lock-step watchdog (a
+/// loaded host's stalls do not trip it; the watchdog's own test sets it back).
 pub fn servo_segment_with(n: usize, config: &ServoConfig) -> SharedSegment {
     let mut segment = Segment::new();
     for i in 0..n {
-        let (device, servo) = servo(config, i);
+        let (mut device, servo) = servo(config, i);
+        device.set_sm_watchdog_time(flexid_ecat::emulated::LOCKSTEP_WATCHDOG_UNITS);
         segment.push_with(device, servo);
     }
     Arc::new(Mutex::new(segment))

@@ -15,6 +15,11 @@ fn example_configuration_parses() {
     assert_eq!(cfg.data_dir, Path::new("/var/lib/flexid"));
     assert!(cfg.mqtt.is_some());
     assert!(cfg.axis.len() >= 2);
+    // issue 18: an EtherCAT line on its own interface
+    assert!(cfg.bus.iter().any(|b| {
+        b.kind == flexid::daemon::config::BusKind::Ethercat
+            && b.interface.as_deref() == Some("eth1")
+    }));
 }
 
 #[test]
@@ -33,7 +38,8 @@ fn unit_has_the_hardening_and_notify_settings() {
         "ProtectHome=yes",
         "PrivateTmp=yes",
         "NoNewPrivileges=yes",
-        "RestrictAddressFamilies=AF_UNIX AF_INET AF_INET6 AF_CAN AF_NETLINK",
+        // issue 18: EtherCAT's raw sockets (AF_PACKET)
+        "RestrictAddressFamilies=AF_UNIX AF_INET AF_INET6 AF_CAN AF_NETLINK AF_PACKET",
         "LimitRTPRIO=",
         "LimitMEMLOCK=",
         // issue 16: descriptors for the connection limit plus the store's reserve

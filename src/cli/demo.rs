@@ -53,6 +53,7 @@ pub fn demo_sweep_args(plant: &PlantFile, bus: String, out: PathBuf) -> SweepArg
         max_speed_rad_s: 200.0,
         max_lost: None,
         profiles: None,
+        generic_profile: false,
         out,
         masses: None,
         daemon: Default::default(),

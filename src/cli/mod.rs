@@ -5,7 +5,7 @@
 //! * `flexid identify REC.csv [--masses N] [--json OUT.json]`
 //! * `flexid bode REC.csv --out bode.svg`
 //! * `flexid excite multisine|chirp|stepped ... --out EXC.csv`
-//! * `flexid sweep --bus udp[:GROUP[:PORT]]|vcan0|socketcan:IFACE --node 5 ...` (see [`sweep::SweepArgs`])
+//! * `flexid sweep --bus udp[:GROUP[:PORT]]|vcan0|socketcan:IFACE|ethercat:IFACE|ethercat:emulated --node 5 ...` (see [`sweep::SweepArgs`])
 
 mod commands;
 pub mod daemon_client;
@@ -19,6 +19,7 @@ mod robot;
 mod robot_bus;
 pub mod sweep;
 mod sweep_args;
+mod sweep_ethercat;
 #[cfg(test)]
 mod sweep_tests;
 
@@ -234,7 +235,12 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
         Command::Simulate(a) => commands::simulate(&a),
         Command::Demo(a) => demo::demo(&a),
         Command::Import(a) => commands::import(&a),
-        Command::Sweep(a) => sweep::sweep(&a),
+        Command::Sweep(a) => match sweep_ethercat::EcatTarget::parse(&a.bus) {
+            Some(target) if a.daemon.daemon.is_none() => {
+                sweep_ethercat::sweep_run_ethercat(&a, &target).map(|_| ())
+            }
+            _ => sweep::sweep(&a),
+        },
         Command::Daemon(a) => crate::daemon::run(&a.config).map_err(|e| CliError {
             message: e.to_string(),
             code: e.exit_code(),

@@ -1,5 +1,5 @@
 //! `flexid sweep`: one measurement on one axis over CAN, from bring-up to the identified
-//! chain. The logic is in [`crate::sweep`]; this is argument handling, the bus and files.
+//! chain (EtherCAT: `sweep_ethercat`, chosen by the command's dispatch in `cli`). The logic is in [`crate::sweep`]; this is argument handling, the bus and files.
 
 use super::excite::{generate, ExciteArgs, ExciteKind, MultisineArgs};
 use super::{CliError, ModelArgs};
@@ -10,7 +10,7 @@ use crate::sweep::{
     SimulatedPlant, SweepOutcome, SweepPlan,
 };
 use flexid_can::{CanBus, UdpMulticastBus};
-use flexid_canopen::{bring_up, MasterConfig, ProfileSet};
+use flexid_canopen::{bring_up, CyclicDrive, Identity, MasterConfig, Profile, ProfileSet};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
@@ -137,13 +137,24 @@ pub fn plan(a: &SweepArgs) -> Result<SweepPlan, CliError> {
     Ok(p)
 }
 
+/// The built-in firmware profiles and those of `--profiles DIR`.
+pub(super) fn profiles(a: &SweepArgs) -> Result<ProfileSet, CliError> {
+    let mut profiles = ProfileSet::builtin();
+    if let Some(dir) = &a.profiles {
+        profiles
+            .load_dir(dir)
+            .map_err(|e| CliError::input(e.to_string()))?;
+    }
+    Ok(profiles)
+}
+
 /// The admission check as the command reports it (exit code 2 when refused).
 pub fn admit(cycle_hz: f64, bitrate: u32) -> Result<f64, CliError> {
     admission_check(cycle_hz, bitrate)
         .map_err(|e| CliError::input(format!("refused before touching the bus: {e}")))
 }
 
-fn progress_line(p: &Progress) {
+pub(super) fn progress_line(p: &Progress) {
     let c = p.counters;
     if p.periods_total > 0 {
         eprint!(
@@ -196,8 +207,37 @@ fn measure<B: CanBus>(
     );
     let drive = bring_up(bus, cfg, profiles)
         .map_err(|e| CliError::failed(format!("bring-up failed: {e}")))?;
-    let id = *drive.identity();
-    let profile = drive.profile();
+    let info = drive_info(
+        a,
+        plan,
+        bus_name,
+        drive.identity(),
+        drive.profile(),
+        drive.scaling().rated_torque_nm,
+    );
+    let mut drive = drive
+        .enable()
+        .map_err(|e| CliError::failed(format!("enable failed: {e}")))?;
+    let outcome = run_paced(&mut drive, plan);
+    if let Some(e) = &outcome.ramp_error {
+        eprintln!("flexid sweep: ramp to zero torque interrupted: {e}");
+    }
+    match drive.disable() {
+        Ok(_) => eprintln!("flexid sweep: drive disabled"),
+        Err(e) => eprintln!("flexid sweep: disabling the drive failed (best effort): {e}"),
+    }
+    Ok((outcome, info))
+}
+
+/// The recording's drive description of a drive brought up with `profile` (printed).
+pub(super) fn drive_info(
+    a: &SweepArgs,
+    plan: &SweepPlan,
+    bus_name: &str,
+    id: &Identity,
+    profile: &Profile,
+    rated_torque_nm: f64,
+) -> DriveInfo {
     let info = DriveInfo {
         bus: bus_name.to_string(),
         node: a.node,
@@ -207,7 +247,7 @@ fn measure<B: CanBus>(
         revision: id.revision,
         serial: id.serial,
         profile: format!("{} ({})", profile.name, profile.source),
-        rated_torque_nm: drive.scaling().rated_torque_nm,
+        rated_torque_nm,
         cycle_hz: a.cycle_hz,
         clock: plan.pacing.name().into(),
     };
@@ -215,34 +255,22 @@ fn measure<B: CanBus>(
         "flexid sweep: node {} vendor {:#010x} product {:#x} rev {:#x}, profile {}, rated torque {} N m",
         a.node, id.vendor_id, id.product_code, id.revision, info.profile, info.rated_torque_nm
     );
-    let mut drive = drive
-        .enable()
-        .map_err(|e| CliError::failed(format!("enable failed: {e}")))?;
-    let outcome = match plan.pacing {
+    info
+}
+
+/// Runs `plan` on the enabled `drive` as it is paced: real time on a cycle thread of its
+/// own, lock-step on this one.
+pub(super) fn run_paced<D: CyclicDrive + Send>(drive: &mut D, plan: &SweepPlan) -> SweepOutcome {
+    match plan.pacing {
         // absolute deadlines on a cycle thread of its own, SCHED_FIFO when permitted (a
         // drive simulated on the same host must answer at real-time priority too:
         // flexid-vdrive --fifo-priority; at normal priority it answers late whenever the
         // host is busy, and the sweep counts those TPDOs late or lost)
         Pacing::Realtime => {
-            run_sweep_on_cycle_thread(
-                &mut drive,
-                plan,
-                &STOP,
-                &mut progress_line,
-                realtime_setup(),
-            )
-            .0
+            run_sweep_on_cycle_thread(drive, plan, &STOP, &mut progress_line, realtime_setup()).0
         }
-        Pacing::Lockstep => run_sweep(&mut drive, plan, &STOP, &mut progress_line),
-    };
-    if let Some(e) = &outcome.ramp_error {
-        eprintln!("flexid sweep: ramp to zero torque interrupted: {e}");
+        Pacing::Lockstep => run_sweep(drive, plan, &STOP, &mut progress_line),
     }
-    match drive.disable() {
-        Ok(_) => eprintln!("flexid sweep: drive disabled"),
-        Err(e) => eprintln!("flexid sweep: disabling the drive failed (best effort): {e}"),
-    }
-    Ok((outcome, info))
 }
 
 /// Saves the outcome's recording (with `info`) into `out`; prints how it ended.
@@ -284,12 +312,7 @@ pub fn sweep_run(a: &SweepArgs) -> Result<SweepRun, CliError> {
     }
     let load = admit(a.cycle_hz, a.bitrate)?;
     let plan = plan(a)?;
-    let mut profiles = ProfileSet::builtin();
-    if let Some(dir) = &a.profiles {
-        profiles
-            .load_dir(dir)
-            .map_err(|e| CliError::input(e.to_string()))?;
-    }
+    let profiles = profiles(a)?;
     print_plan(a, &plan, Some(load));
     install_signal_handlers();
     let name = spec.describe();
@@ -343,11 +366,16 @@ pub fn sweep_run_simulated(
 /// The sweep's one-line summary on stderr: excitation, periods, rate, peak torque, and
 /// the bus load where there is a bus.
 fn print_plan(a: &SweepArgs, plan: &SweepPlan, bus_load: Option<f64>) {
-    let info = &plan.excitation;
     let bus = match bus_load {
         Some(load) => format!("bus load {:.1} % at {} bit/s", 100.0 * load, a.bitrate),
         None => "no bus (simulated drive in-process)".into(),
     };
+    print_plan_on(a, plan, &bus);
+}
+
+/// [`print_plan`] with the bus described by `bus`.
+pub(super) fn print_plan_on(a: &SweepArgs, plan: &SweepPlan, bus: &str) {
+    let info = &plan.excitation;
     eprintln!(
         "flexid sweep: {:?} {} lines {:.3}-{:.1} Hz, {} + {} periods of {} cycles at {} Hz ({:.1} s), peak {:.3} N m; {bus}; clock {}",
         info.kind,
@@ -365,7 +393,7 @@ fn print_plan(a: &SweepArgs, plan: &SweepPlan, bus_load: Option<f64>) {
 }
 
 /// Saves the recording into `a.out` and, when the sweep completed, identifies it.
-fn save_and_identify(
+pub(super) fn save_and_identify(
     mut outcome: SweepOutcome,
     drive_info: DriveInfo,
     a: &SweepArgs,

@@ -25,8 +25,10 @@ pub enum ExcitationArg {
 /// `flexid sweep` (a contract: a daemon accepts the same flags).
 #[derive(Debug, Args, Clone)]
 pub struct SweepArgs {
-    /// The bus: `udp[:GROUP[:PORT]]` (user-space UDP multicast), `vcan0` or
-    /// `socketcan:IFACE` (not with `--daemon`: the daemon owns its buses).
+    /// The bus: `udp[:GROUP[:PORT]]` (user-space UDP multicast), `vcan0`,
+    /// `socketcan:IFACE`, or EtherCAT: `ethercat:IFACE` (root or CAP_NET_RAW) or
+    /// `ethercat:emulated[:PLANT.toml]` (emulated servos in process) (not with `--daemon`:
+    /// the daemon owns its buses).
     #[arg(
         long,
         required_unless_present = "daemon",
@@ -34,7 +36,7 @@ pub struct SweepArgs {
         hide_default_value = true
     )]
     pub bus: String,
-    /// The drive's CANopen node-id.
+    /// The drive's CANopen node-id; on EtherCAT the SubDevice's position (1 = first).
     #[arg(long, default_value_t = 5)]
     pub node: u8,
     /// Cycle (SYNC) rate [Hz]; the recording's sample rate.
@@ -86,6 +88,10 @@ pub struct SweepArgs {
     /// More firmware profiles (a directory of TOML files) besides the built-in ones.
     #[arg(long)]
     pub profiles: Option<PathBuf>,
+    /// EtherCAT: run a drive no profile knows with the generic CiA 402 profile (units
+    /// read from the drive) instead of refusing it.
+    #[arg(long)]
+    pub generic_profile: bool,
     /// Output folder: recording.csv/.json, result.json, bode.svg.
     #[arg(long, default_value = "out/sweep")]
     pub out: PathBuf,

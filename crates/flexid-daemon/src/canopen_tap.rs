@@ -78,4 +78,9 @@ impl<D: CyclicDrive> CyclicDrive for Tap<'_, D> {
     fn counters(&self) -> Counters {
         self.inner.counters()
     }
+
+    /// The wrapped drive's classification.
+    fn error_kind(error: &Self::Error) -> Option<flexid_canopen::DriveErrorKind> {
+        D::error_kind(error)
+    }
 }

@@ -159,7 +159,8 @@ fn default_prefix() -> String {
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct BackendConfig {
-    /// `"simulated"`: a simulated chain (no hardware); `"canopen"`: the drives on the buses.
+    /// `"simulated"`: a simulated chain (no hardware); `"canopen"` (also `"drives"`): the
+    /// drives on the configured buses, CAN or EtherCAT.
     #[serde(default = "default_backend_kind")]
     pub kind: BackendKind,
     /// Plant file (TOML) of the simulated backend; the embedded SCARA shoulder when absent.
@@ -185,6 +186,7 @@ fn default_backend_kind() -> BackendKind {
 #[serde(rename_all = "snake_case")]
 pub enum BackendKind {
     Simulated,
+    #[serde(alias = "drives")]
     Canopen,
 }
 
@@ -194,12 +196,21 @@ pub enum BackendKind {
 pub struct BusConfig {
     /// Name referenced by `axis.bus`.
     pub name: String,
-    /// `"socketcan"` (needs `interface`) or `"udp"` (python-can compatible multicast; needs
-    /// `group` and `port`).
+    /// `"socketcan"` (needs `interface`), `"udp"` (python-can compatible multicast; needs
+    /// `group` and `port`) or `"ethercat"` (needs `interface`, or `emulated = true`).
     pub kind: BusKind,
-    /// SocketCAN interface, e.g. `can0`.
+    /// SocketCAN interface (e.g. `can0`) or the EtherCAT network interface (e.g. `eth1`).
     #[serde(default)]
     pub interface: Option<String>,
+    /// `ethercat` only: the line is emulated in the daemon's process (CiA 402 servos behind
+    /// emulated ESCs, one per node up to the highest configured on the bus, in front of
+    /// `plant`): no interface, no privilege.
+    #[serde(default)]
+    pub emulated: bool,
+    /// `ethercat` with `emulated = true`: the servos' plant file (the embedded SCARA
+    /// shoulder when absent).
+    #[serde(default)]
+    pub plant: Option<PathBuf>,
     /// UDP multicast group, e.g. `239.74.163.2`.
     #[serde(default)]
     pub group: Option<std::net::IpAddr>,
@@ -209,7 +220,9 @@ pub struct BusConfig {
     /// Bit rate [bit/s] (for the bus-load check), 10 000 ..= 1 000 000 (classic CAN). A
     /// `udp` bus has no wire time of its own, so it may also stand for a faster transport
     /// (an EtherCAT-class link, up to [`MAX_VIRTUAL_BITRATE`]): the admission then counts
-    /// the same frames at that rate.
+    /// the same frames at that rate. Not given for an `ethercat` bus (100 Mbit/s; its
+    /// cycle is limited by the drive's firmware profile, checked at bring-up).
+    #[serde(default)]
     pub bitrate: u32,
 }
 
@@ -218,11 +231,13 @@ pub struct BusConfig {
 pub const MAX_VIRTUAL_BITRATE: u32 = 100_000_000;
 
 /// Bus kinds.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, serde::Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum BusKind {
     Udp,
     Socketcan,
+    /// EtherCAT, CoE CiA 402 drives (`flexid-ecat`).
+    Ethercat,
 }
 
 /// How an axis's cycle is timed.
@@ -243,7 +258,8 @@ pub struct AxisConfig {
     pub name: String,
     /// The bus (a `[[bus]]` name).
     pub bus: String,
-    /// CANopen node-id, 1..=127.
+    /// CANopen node-id, 1..=127; on an `ethercat` bus the SubDevice's position on the
+    /// line, 1 = the first.
     pub node: u8,
     /// Firmware profile name (selected from the drive's identity when absent).
     #[serde(default)]
@@ -366,7 +382,34 @@ impl Config {
             if !buses.insert(b.name.as_str()) {
                 return Err(bad(key("name"), "duplicate bus name"));
             }
+            if b.kind != BusKind::Ethercat && (b.emulated || b.plant.is_some()) {
+                return Err(bad(
+                    key("emulated"),
+                    "`emulated` and `plant` are for an ethercat bus only",
+                ));
+            }
             match b.kind {
+                BusKind::Ethercat => {
+                    if b.emulated == b.interface.is_some() {
+                        return Err(bad(
+                            key("interface"),
+                            "an ethercat bus needs an interface name, or emulated = true \
+                             (not both)",
+                        ));
+                    }
+                    if b.plant.is_some() && !b.emulated {
+                        return Err(bad(
+                            key("plant"),
+                            "only an emulated ethercat bus has a plant",
+                        ));
+                    }
+                    if b.bitrate != 0 {
+                        return Err(bad(
+                            key("bitrate"),
+                            "not given for an ethercat bus (100 Mbit/s)",
+                        ));
+                    }
+                }
                 BusKind::Socketcan => {
                     if b.interface
                         .as_deref()
@@ -606,6 +649,62 @@ limits = { peak_torque_nm = 2.0, max_speed_rad_s = 10.0, position_window_rad = 1
         assert!(
             e.starts_with("f: bus[0].bitrate: must be 10000..=100000000"),
             "{e}"
+        );
+    }
+
+    #[test]
+    fn an_ethercat_bus_has_an_interface_or_is_emulated() {
+        let ecat = GOOD.replace(
+            "kind = \"socketcan\"\ninterface = \"can0\"\nbitrate = 1000000",
+            "kind = \"ethercat\"\ninterface = \"eth1\"",
+        );
+        let c = Config::parse(&ecat, "f").unwrap();
+        assert_eq!(c.bus[0].kind, BusKind::Ethercat);
+        assert_eq!(c.bus[0].interface.as_deref(), Some("eth1"));
+        let emulated = ecat.replace("interface = \"eth1\"", "emulated = true");
+        let c = Config::parse(&emulated, "f").unwrap();
+        assert!(c.bus[0].emulated);
+        for (text, want) in [
+            (
+                ecat.replace("interface = \"eth1\"", ""),
+                "f: bus[0].interface: an ethercat bus needs an interface name, or emulated = \
+                 true (not both)",
+            ),
+            (
+                ecat.replace(
+                    "interface = \"eth1\"",
+                    "interface = \"eth1\"\nemulated = true",
+                ),
+                "f: bus[0].interface: an ethercat bus needs an interface name, or emulated = \
+                 true (not both)",
+            ),
+            (
+                ecat.replace(
+                    "interface = \"eth1\"",
+                    "interface = \"eth1\"\nbitrate = 1000000",
+                ),
+                "f: bus[0].bitrate: not given for an ethercat bus (100 Mbit/s)",
+            ),
+            (
+                GOOD.replace(
+                    "interface = \"can0\"",
+                    "interface = \"can0\"\nemulated = true",
+                ),
+                "f: bus[0].emulated: `emulated` and `plant` are for an ethercat bus only",
+            ),
+        ] {
+            let e = Config::parse(&text, "f").unwrap_err().to_string();
+            assert_eq!(e, want);
+        }
+        let drives = emulated.replace("data_dir", "[backend]\nkind = \"drives\"\ndata_dir");
+        let drives = drives.replacen(
+            "[backend]\nkind = \"drives\"\ndata_dir = \"/tmp/x\"",
+            "data_dir = \"/tmp/x\"\n[backend]\nkind = \"drives\"",
+            1,
+        );
+        assert_eq!(
+            Config::parse(&drives, "f").unwrap().backend.kind,
+            BackendKind::Canopen
         );
     }
 

@@ -9,7 +9,8 @@
 //! * [`request`]: sweep requests, validated against the axis limits, and their plan;
 //! * [`backend`]: the [`AxisBackend`] seam to what drives the motor;
 //!   [`sim_backend`] simulates a chain behind it, [`canopen_backend`] drives CiA 402
-//!   drives with the sweep library;
+//!   drives on CAN with the sweep library, [`ecat_backend`] on EtherCAT,
+//!   [`fieldbus_backend`] picks one by the axis's bus kind;
 //! * [`store`]: the results store (atomic files, per-period fsynced recording,
 //!   `interrupted` after a crash);
 //! * [`service`], [`runner`], [`hub`]: the sweeps' life cycle and event fan-out;
@@ -26,6 +27,8 @@ mod canopen_tap;
 pub mod config;
 pub mod connections;
 mod drive_sweep;
+pub mod ecat_backend;
+pub mod fieldbus_backend;
 mod follow;
 pub mod hub;
 mod job;

@@ -64,15 +64,20 @@ pub fn backend_from_config(cfg: &Config) -> Result<Arc<dyn AxisBackend>, DaemonE
         }
         BackendKind::Canopen => {
             for (i, a) in cfg.axis.iter().enumerate() {
-                let bus = cfg.bus.iter().find(|b| b.name == a.bus);
+                // an EtherCAT line's cycle is checked against the drive's firmware profile
+                // at bring-up (the CAN admission counts CAN frames)
+                let bus = cfg
+                    .bus
+                    .iter()
+                    .find(|b| b.name == a.bus && b.kind != super::config::BusKind::Ethercat);
                 if let Some(b) = bus {
                     flexid_sweep::admission_check(a.cycle_hz, b.bitrate)
                         .map_err(|e| DaemonError::Backend(format!("axis[{i}].cycle_hz: {e}")))?;
                 }
             }
-            Ok(Arc::new(super::canopen_backend::CanopenBackend::new(
-                &cfg.bus,
-            )))
+            let b =
+                super::fieldbus_backend::FieldbusBackend::new(cfg).map_err(DaemonError::Backend)?;
+            Ok(Arc::new(b))
         }
     }
 }

@@ -50,6 +50,8 @@ pub enum AxisState {
 pub struct AxisView {
     pub name: String,
     pub bus: String,
+    /// The kind of the axis's bus (`udp`, `socketcan`, `ethercat`).
+    pub bus_kind: Option<super::config::BusKind>,
     pub node: u8,
     pub cycle_hz: f64,
     pub state: AxisState,
@@ -144,6 +146,12 @@ impl Service {
                 AxisView {
                     name: a.name.clone(),
                     bus: a.bus.clone(),
+                    bus_kind: self
+                        .config
+                        .bus
+                        .iter()
+                        .find(|b| b.name == a.bus)
+                        .map(|b| b.kind),
                     node: a.node,
                     cycle_hz: a.cycle_hz,
                     state: st.as_ref().map_or(AxisState::Idle, |s| s.0),

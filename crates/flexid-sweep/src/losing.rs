@@ -71,6 +71,11 @@ impl<D: CyclicDrive> CyclicDrive for LosingDrive<D> {
     fn counters(&self) -> Counters {
         self.counters_with(self.inner.counters())
     }
+
+    /// The wrapped drive's classification.
+    fn error_kind(error: &Self::Error) -> Option<flexid_canopen::DriveErrorKind> {
+        D::error_kind(error)
+    }
 }
 
 impl<D> LosingDrive<D> {

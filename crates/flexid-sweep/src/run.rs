@@ -4,7 +4,7 @@ use super::plan::{Pacing, SweepPlan};
 use super::rows::{RecordedRows, Row, RowSink};
 use super::simulated::SimulatedFault;
 use super::stale_fill::StaleFill;
-use flexid_canopen::{Counters, CyclicDrive, MasterError};
+use flexid_canopen::{Counters, CyclicDrive, DriveErrorKind, MasterError};
 use flexid_core::excitation::ExcitationKind;
 use flexid_core::recording::{CycleCounters, Recording, RecordingEnd, Sidecar};
 use flexid_rt::clock::{self, InstantMap, MonoNs};
@@ -71,6 +71,25 @@ impl StopReason {
                 | StopReason::BusError(_)
                 | StopReason::DriveError(_)
         )
+    }
+
+    /// Classify an error of drive type `D`: by the drive's own [`CyclicDrive::error_kind`]
+    /// where it gives one (EtherCAT), by [`StopReason::of_error`] otherwise.
+    pub fn of_drive_error<D: CyclicDrive>(e: &D::Error) -> Self {
+        match D::error_kind(e) {
+            Some(kind) => Self::of_kind(kind, e.to_string()),
+            None => Self::of_error(e),
+        }
+    }
+
+    /// The stop reason of a fieldbus-independent error kind, with the error's text.
+    pub fn of_kind(kind: DriveErrorKind, text: String) -> Self {
+        match kind {
+            DriveErrorKind::DriveFault => StopReason::DriveFault(text),
+            DriveErrorKind::FeedbackLost => StopReason::FeedbackLost(text),
+            DriveErrorKind::Bus => StopReason::BusError(text),
+            DriveErrorKind::Other => StopReason::DriveError(text),
+        }
     }
 
     /// Classify an error of a [`CyclicDrive`].
@@ -429,7 +448,7 @@ pub fn run_sweep_into<D: CyclicDrive>(
         let fb = match drive.cycle(plan.torque_nm[k], deadline) {
             Ok(fb) => fb,
             Err(e) => {
-                reason = StopReason::of_error(&e);
+                reason = StopReason::of_drive_error::<D>(&e);
                 stop_cycle = k as u64;
                 break;
             }

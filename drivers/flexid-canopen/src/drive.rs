@@ -76,6 +76,24 @@ pub struct Counters {
     pub bus_errors: u64,
 }
 
+/// What kind of failure an error of a [`CyclicDrive`] is, whatever the fieldbus: the sweep's
+/// stop reason is made from it ([`CyclicDrive::error_kind`]), so a CAN and an EtherCAT
+/// cause read the same way in the report and the recording.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum DriveErrorKind {
+    /// The drive itself faulted or left its operating state (CiA 402 Fault, EMCY, NMT
+    /// change; EtherCAT: an AL error such as a watchdog or DC out of sync).
+    DriveFault,
+    /// The drive's feedback stopped arriving in time (CAN: TPDOs lost; EtherCAT: missed
+    /// cycles, frames lost).
+    FeedbackLost,
+    /// The bus or the line failed (CAN: bus off, error frames; EtherCAT: a SubDevice lost,
+    /// a wrong working counter).
+    Bus,
+    /// Anything else the drive interface reports.
+    Other,
+}
+
 /// A drive in cyclic synchronous torque mode, enabled. Fieldbus-independent.
 pub trait CyclicDrive {
     /// The error type of the implementation.
@@ -111,6 +129,13 @@ pub trait CyclicDrive {
     /// set-point k acts, as on CAN).
     fn grid_io_delay_cycles(&self) -> u32 {
         0
+    }
+
+    /// What kind of failure `error` is. The default, `None`, leaves the caller to find out
+    /// by itself (the sweep downcasts the CANopen master's errors).
+    fn error_kind(error: &Self::Error) -> Option<DriveErrorKind> {
+        let _ = error;
+        None
     }
 }
 

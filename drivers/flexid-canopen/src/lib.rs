@@ -32,11 +32,11 @@ pub mod profile;
 pub mod scaling;
 pub mod sdo;
 
-pub use drive::{Counters, CyclicDrive, Feedback, MultiAxisDrive};
+pub use drive::{Counters, CyclicDrive, DriveErrorKind, Feedback, MultiAxisDrive};
 pub use master::{
     bring_up, Configured, Drive, DriveGroup, Enabled, ErrorFramePolicy, MasterConfig, MasterError,
     PreOperational,
 };
-pub use profile::{Identity, Profile, ProfileError, ProfileSet};
+pub use profile::{EthercatIdentity, Identity, Profile, ProfileError, ProfileSet};
 pub use scaling::Scaling;
 pub use sdo::{Sdo, SdoError};

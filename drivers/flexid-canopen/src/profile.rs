@@ -110,6 +110,36 @@ impl IdentityMatch {
     }
 }
 
+/// The EtherCAT identity of a drive's firmware (`[ethercat]`): what the SubDevice's SII
+/// EEPROM holds (vendor id as assigned by the ETG, product code, revision; a CoE drive
+/// shows the same in 0x1018), and its shortest SYNC0 cycle.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct EthercatIdentity {
+    /// SII vendor id (ETG-assigned).
+    pub vendor_id: u32,
+    /// SII product code.
+    pub product_code: u32,
+    /// Lowest matching SII revision (inclusive), none: any.
+    pub revision_min: Option<u32>,
+    /// Highest matching SII revision (inclusive), none: any.
+    pub revision_max: Option<u32>,
+    /// Shortest SYNC0 cycle over EtherCAT, µs; none: the profile's `min_cycle_us`.
+    pub min_cycle_us: Option<u32>,
+}
+
+impl EthercatIdentity {
+    /// As an identity match (the same rules as 0x1018 on CAN).
+    pub fn as_match(&self) -> IdentityMatch {
+        IdentityMatch {
+            vendor_id: self.vendor_id,
+            product_code: self.product_code,
+            revision_min: self.revision_min,
+            revision_max: self.revision_max,
+        }
+    }
+}
+
 /// The CiA 402 object indices a firmware uses (standard ones unless overridden in the
 /// profile's `[objects]` table). Subindex 0 throughout.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
@@ -229,6 +259,8 @@ pub struct Profile {
     pub description: String,
     /// Which drives it is for; `None` for the generic fallback.
     pub identity: Option<IdentityMatch>,
+    /// Which EtherCAT SubDevices it is for (`[ethercat]`); `None`: not an EtherCAT drive.
+    pub ethercat: Option<EthercatIdentity>,
     /// Object indices.
     pub objects: ObjectMap,
     /// Encoder increments per revolution, or read 0x608F (sub 1 increments / sub 2
@@ -286,6 +318,7 @@ struct FileRepr {
     #[serde(default)]
     description: String,
     identity: Option<IdentityMatch>,
+    ethercat: Option<EthercatIdentity>,
     #[serde(default)]
     objects: ObjectMap,
     units: UnitsRepr,
@@ -403,15 +436,21 @@ pub fn parse(file: &str, text: &str) -> Result<Profile, ProfileError> {
             format!("{} is outside 1..=8", r.max_pdo_entries),
         ));
     }
-    if let Some(id) = &r.identity {
-        if let (Some(lo), Some(hi)) = (id.revision_min, id.revision_max) {
+    for (key, id) in [
+        ("identity.revision_min", r.identity),
+        ("ethercat.revision_min", r.ethercat.map(|e| e.as_match())),
+    ] {
+        if let Some((lo, hi)) = id.and_then(|id| id.revision_min.zip(id.revision_max)) {
             if lo > hi {
                 return Err(invalid(
-                    "identity.revision_min",
+                    key,
                     format!("{lo:#x} is above revision_max {hi:#x}"),
                 ));
             }
         }
+    }
+    if r.ethercat.and_then(|e| e.min_cycle_us) == Some(0) {
+        return Err(invalid("ethercat.min_cycle_us", "must be positive".into()));
     }
     if r.identity.is_none() && r.name != GENERIC {
         return Err(invalid(
@@ -424,6 +463,7 @@ pub fn parse(file: &str, text: &str) -> Result<Profile, ProfileError> {
         source: file.to_string(),
         description: r.description,
         identity: r.identity,
+        ethercat: r.ethercat,
         objects: r.objects,
         increments_per_rev,
         rated_torque,
@@ -519,5 +559,21 @@ impl ProfileSet {
             Some((p, _)) => Ok(p),
             None => self.get(GENERIC).ok_or(ProfileError::NoFallback),
         }
+    }
+
+    /// The profile for an EtherCAT SubDevice from its SII identity (`vendor_id`,
+    /// `product_code`, `revision`): the one whose `[ethercat]` matches, narrowest revision
+    /// range first; `None` when no profile knows the drive (the caller refuses it, or
+    /// chooses `generic-cia402` on purpose).
+    pub fn select_ethercat(&self, id: &Identity) -> Option<&Profile> {
+        let mut best: Option<(&Profile, u64)> = None;
+        for p in &self.profiles {
+            if let Some(m) = p.ethercat.map(|e| e.as_match()).filter(|m| m.matches(id)) {
+                if best.is_none_or(|(_, w)| m.width() <= w) {
+                    best = Some((p, m.width()));
+                }
+            }
+        }
+        best.map(|(p, _)| p)
     }
 }

@@ -218,3 +218,56 @@ fn pdo_codecs_by_hand() {
     );
     assert!(Tpdo2::unpack(&[0; 3]).is_err());
 }
+
+#[test]
+fn ethercat_identities_select_by_sii_identity_and_never_fall_back() {
+    let set = ProfileSet::builtin();
+    // The emulated EtherCAT servo's SII identity: the flexid-vdrive profile, its EtherCAT
+    // minimum cycle.
+    let p = set
+        .select_ethercat(&id(0x0000_0A1D, 0x0402_0000, 3))
+        .expect("known");
+    assert_eq!(p.name, "flexid-vdrive");
+    let e = p.ethercat.expect("[ethercat]");
+    assert_eq!(e.min_cycle_us, Some(125));
+    // The CAN identity of the same drive is not an EtherCAT one, and an unknown SubDevice
+    // gets no profile (no generic fallback: the caller refuses it or chooses generic).
+    assert!(set
+        .select_ethercat(&id(0x0000_0F1D, 0x0000_0402, 0))
+        .is_none());
+    assert!(set
+        .select_ethercat(&id(0x0000_0A1D, 0x0402_0001, 0))
+        .is_none());
+    assert!(set
+        .get("generic-cia402")
+        .expect("generic")
+        .ethercat
+        .is_none());
+    // Revision ranges as on CAN; an empty range is an error naming the key.
+    let text = |lo: u32, hi: u32| {
+        format!(
+            "name = \"acme-ecat\"\nmodes = [\"CST\"]\nmin_cycle_us = 1000\n\
+             [identity]\nvendor_id = 1\nproduct_code = 2\n\
+             [ethercat]\nvendor_id = 0x539\nproduct_code = 0x7\nrevision_min = {lo}\n\
+             revision_max = {hi}\n\
+             [units]\nincrements_per_rev = 4096\nrated_torque = 2.0\n"
+        )
+    };
+    let mut set = ProfileSet::builtin();
+    set.insert(parse("acme-ecat.toml", &text(2, 5)).expect("valid"));
+    let acme = |rev| {
+        set.select_ethercat(&id(0x539, 7, rev))
+            .map(|p| p.name.clone())
+    };
+    assert_eq!(acme(3).as_deref(), Some("acme-ecat"));
+    assert_eq!(acme(6), None);
+    let err = parse("bad.toml", &text(5, 2)).unwrap_err().to_string();
+    assert!(err.contains("ethercat.revision_min"), "{err}");
+    let err = parse(
+        "bad.toml",
+        &text(2, 5).replace("revision_max", "revision_maxx"),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(err.contains("revision_maxx"), "{err}");
+}

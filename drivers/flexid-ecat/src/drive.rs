@@ -37,14 +37,16 @@
 //! The link (ethercrab's `tx_rx_task`, or [`crate::inprocess::SegmentLink`]) runs on another
 //! thread.
 
+use crate::profile::{choose, ProfileChoice, ProfileError};
 use crate::servo::{object, MODE_CST};
 use ethercrab::subdevice_group::{DcConfiguration, HasDc, Op, PreOp};
 use ethercrab::{DcSync, DefaultLock, MainDevice, SubDeviceGroup, SubDeviceState};
 use flexid_canopen::cia402::{next_controlword, Controlword, State, Statusword, Target};
 use flexid_canopen::scaling::PositionUnwrap;
-use flexid_canopen::{Counters, CyclicDrive, Feedback, Scaling};
+use flexid_canopen::{
+    Counters, CyclicDrive, DriveErrorKind, Feedback, Identity, Profile, ProfileSet, Scaling,
+};
 use futures_lite::future::block_on;
-use std::f64::consts::TAU;
 use std::time::{Duration, Instant};
 use thiserror::Error;
 
@@ -76,11 +78,17 @@ pub struct EcatConfig {
     /// pulse ([`CyclicDrive::cycle_grid`]), so that its frame reaches the SubDevices after
     /// that pulse latched the inputs and before the next one applies the outputs.
     pub send_after_sync0: Duration,
+    /// Most consecutive cycles whose exchange may end after their deadline before the
+    /// sweep is stopped with [`EcatError::MissedCycles`].
+    pub max_missed_cycles: u32,
+    /// How the driven axis's firmware profile is chosen.
+    pub profile: ProfileChoice,
 }
 
 impl EcatConfig {
     /// Axis 0 at `cycle_hz` (Hz), SYNC0 starting 1 ms after configuration, 20 exchanges to
-    /// enable, a real-time cycle starting a fifth of a cycle after SYNC0.
+    /// enable, a real-time cycle starting a fifth of a cycle after SYNC0, at most 4 missed
+    /// cycles in a row, the profile chosen by identity.
     pub fn at_hz(cycle_hz: f64) -> Self {
         let cycle = Duration::from_secs_f64(1.0 / cycle_hz);
         Self {
@@ -89,6 +97,8 @@ impl EcatConfig {
             sync0_start_delay: Duration::from_millis(1),
             enable_exchanges: 20,
             send_after_sync0: cycle / 5,
+            max_missed_cycles: 4,
+            profile: ProfileChoice::ByIdentity,
         }
     }
 }
@@ -120,6 +130,14 @@ pub enum EcatError {
         position: usize,
         outputs: usize,
         inputs: usize,
+    },
+    #[error("SubDevice {position} ({address:#06x}, {name}): {source}")]
+    Profile {
+        position: usize,
+        address: u16,
+        name: String,
+        #[source]
+        source: ProfileError,
     },
     #[error("SubDevice {position}: {what} {value} unusable")]
     Scaling {
@@ -154,9 +172,11 @@ pub enum EcatError {
         expected: u16,
         subdevices: usize,
     },
+    /// An AL error; the codes of [`SYNC_CODES`] read as "DC out of sync".
     #[error(
-        "cycle {cycle}: AL error: SubDevice {position} ({address:#06x}) left OP: {state}, AL \
+        "cycle {cycle}: {cause}: SubDevice {position} ({address:#06x}) left OP: {state}, AL \
          status code {code:#06x} ({text})",
+        cause = al_cause(*code),
         text = ethercrab::AlStatusCode::from(*code)
     )]
     AlState {
@@ -167,13 +187,24 @@ pub enum EcatError {
         code: u16,
     },
     #[error(
+        "cycle {cycle}: missed cycles: {consecutive} exchanges in a row ended after their \
+         deadline (budget {budget}, cycle {period_us} us)"
+    )]
+    MissedCycles {
+        cycle: u64,
+        consecutive: u32,
+        budget: u32,
+        period_us: u64,
+    },
+    #[error(
         "cycle {cycle}: drive fault: the axis is in {state:?}, not Operation enabled \
-         (statusword {statusword:#06x})"
+         (statusword {statusword:#06x}, error code 0x603F = {error_code:#06x})"
     )]
     Fault {
         cycle: u64,
         state: Option<State>,
         statusword: u16,
+        error_code: u16,
     },
     #[error(
         "the walk to Operation enabled stopped in {state:?} (statusword {statusword:#06x}) \
@@ -184,6 +215,19 @@ pub enum EcatError {
         state: Option<State>,
         statusword: u16,
     },
+}
+
+/// AL status codes that mean the SubDevice lost the distributed clock's synchronisation:
+/// synchronisation error, fatal SYNC error, no SYNC error, PLL error (ETG.1000.6).
+pub const SYNC_CODES: [u16; 4] = [0x001A, 0x002C, 0x002D, 0x0032];
+
+/// How an AL error reads: "DC out of sync" for the [`SYNC_CODES`], "AL error" otherwise.
+pub fn al_cause(code: u16) -> &'static str {
+    if SYNC_CODES.contains(&code) {
+        "DC out of sync"
+    } else {
+        "AL error"
+    }
 }
 
 /// The group in OP with SYNC0 configured.
@@ -225,6 +269,9 @@ pub struct EcatDrive<'md, const S: usize, const P: usize> {
     group: OpGroup<S, P>,
     config: EcatConfig,
     scaling: Scaling,
+    profile: Profile,
+    /// The driven axis's SII identity (vendor id, product code, revision, serial).
+    identity: Identity,
     unwrap: PositionUnwrap,
     previous_cw: Controlword,
     /// Exchanges since bring-up began (the walk included).
@@ -239,6 +286,8 @@ pub struct EcatDrive<'md, const S: usize, const P: usize> {
     sync0: Option<Sync0Estimate>,
     /// The DC reference's system time as the last exchange's frame passed it, ns.
     last_dc_time_ns: u64,
+    /// Consecutive cycles whose exchange ended after the deadline.
+    missed_in_a_row: u32,
 }
 
 /// Round trips this much longer than the shortest seen still refresh the SYNC0 estimate
@@ -256,20 +305,31 @@ struct Sync0Estimate {
 }
 
 impl<'md, const S: usize, const P: usize> EcatDrive<'md, S, P> {
-    /// Brings the axis up to Operation enabled in CST; see the module documentation.
-    /// Blocks; the link must run on another thread.
+    /// Brings the axis up to Operation enabled in CST with the built-in firmware profiles;
+    /// see the module documentation. Blocks; the link must run on another thread.
     pub fn bring_up(
         md: &'md MainDevice<'md>,
         group: SubDeviceGroup<S, P, DefaultLock, PreOp>,
         config: EcatConfig,
     ) -> Result<Self, EcatError> {
-        block_on(Self::bring_up_async(md, group, config))
+        Self::bring_up_with(md, group, config, &ProfileSet::builtin())
+    }
+
+    /// [`EcatDrive::bring_up`] choosing the driven axis's profile from `profiles`.
+    pub fn bring_up_with(
+        md: &'md MainDevice<'md>,
+        group: SubDeviceGroup<S, P, DefaultLock, PreOp>,
+        config: EcatConfig,
+        profiles: &ProfileSet,
+    ) -> Result<Self, EcatError> {
+        block_on(Self::bring_up_async(md, group, config, profiles))
     }
 
     async fn bring_up_async(
         md: &'md MainDevice<'md>,
         mut group: SubDeviceGroup<S, P, DefaultLock, PreOp>,
         config: EcatConfig,
+        profiles: &ProfileSet,
     ) -> Result<Self, EcatError> {
         let len = group.len();
         if config.axis >= len {
@@ -279,6 +339,8 @@ impl<'md, const S: usize, const P: usize> EcatDrive<'md, S, P> {
             });
         }
         let mut scaling = None;
+        let mut profile = None;
+        let mut sii_identity = Identity::default();
         for position in 0..len {
             let sd = group
                 .subdevice(md, position)
@@ -295,6 +357,28 @@ impl<'md, const S: usize, const P: usize> EcatDrive<'md, S, P> {
                     source,
                 }
             };
+            if position == config.axis {
+                let sii = sd.identity();
+                let identity = Identity {
+                    vendor_id: sii.vendor_id,
+                    product_code: sii.product_id,
+                    revision: sii.revision,
+                    serial: sii.serial,
+                    // 0x1000 is not read: the CST mapping below fails on anything but a
+                    // CiA 402 drive
+                    device_type: 0x0002_0192,
+                };
+                let chosen = choose(profiles, &identity, config.profile, config.cycle).map_err(
+                    |source| EcatError::Profile {
+                        position,
+                        address,
+                        name: sd.name().to_string(),
+                        source,
+                    },
+                )?;
+                profile = Some(chosen);
+                sii_identity = identity;
+            }
             for (assign, pdo, entries) in [
                 (0x1C12u16, 0x1600u16, &RX_PDO[..]),
                 (0x1C13, 0x1A00, &TX_PDO[..]),
@@ -350,11 +434,10 @@ impl<'md, const S: usize, const P: usize> EcatDrive<'md, S, P> {
                     }
                 }
                 let increments_per_rev = f64::from(increments) / f64::from(revolutions);
-                scaling = Some(Scaling {
-                    increments_per_rev,
-                    rated_torque_nm: f64::from(rated_mnm) / 1000.0,
-                    velocity_unit_rad_s: TAU / increments_per_rev,
-                });
+                let rated_torque_nm = f64::from(rated_mnm) / 1000.0;
+                scaling = profile
+                    .as_ref()
+                    .map(|p| p.scaling(increments_per_rev, rated_torque_nm));
             }
         }
         for mut sd in group.iter_mut(md) {
@@ -402,7 +485,7 @@ impl<'md, const S: usize, const P: usize> EcatDrive<'md, S, P> {
                 });
             }
         }
-        let Some(scaling) = scaling else {
+        let (Some(scaling), Some(profile)) = (scaling, profile) else {
             return Err(EcatError::NoAxis {
                 axis: config.axis,
                 len,
@@ -414,6 +497,8 @@ impl<'md, const S: usize, const P: usize> EcatDrive<'md, S, P> {
             group,
             config,
             scaling,
+            profile,
+            identity: sii_identity,
             unwrap: PositionUnwrap::default(),
             previous_cw: Controlword::default(),
             exchanges: 0,
@@ -422,6 +507,7 @@ impl<'md, const S: usize, const P: usize> EcatDrive<'md, S, P> {
             last: Inputs::default(),
             sync0: None,
             last_dc_time_ns: 0,
+            missed_in_a_row: 0,
         };
         drive.walk(Target::OperationEnabled).await?;
         drive.counters = Counters::default();
@@ -582,6 +668,36 @@ impl<'md, const S: usize, const P: usize> EcatDrive<'md, S, P> {
         self.sync0.map(|e| e.rtt)
     }
 
+    /// Counts a cycle whose exchange ended after its deadline (`fresh` false); more than
+    /// [`EcatConfig::max_missed_cycles`] in a row is an error.
+    fn count_missed(&mut self, cycle: u64, fresh: bool) -> Result<(), EcatError> {
+        if fresh {
+            self.missed_in_a_row = 0;
+            return Ok(());
+        }
+        self.counters.missed += 1;
+        self.counters.late += 1;
+        self.missed_in_a_row += 1;
+        if self.missed_in_a_row > self.config.max_missed_cycles {
+            return Err(EcatError::MissedCycles {
+                cycle,
+                consecutive: self.missed_in_a_row,
+                budget: self.config.max_missed_cycles,
+                period_us: self.config.cycle.as_micros() as u64,
+            });
+        }
+        Ok(())
+    }
+
+    /// The driven axis's error code 0x603F, by SDO (the fault path: allowed to take its
+    /// time); 0 when it cannot be read.
+    async fn error_code(&self) -> u16 {
+        match self.group.subdevice(self.md, self.config.axis) {
+            Ok(sd) => sd.sdo_read::<u16>(object::ERROR_CODE, 0).await.unwrap_or(0),
+            Err(_) => 0,
+        }
+    }
+
     /// The CiA 402 walk back to Switch on disabled (torque 0): the power stage off.
     pub fn disable(&mut self) -> Result<(), EcatError> {
         block_on(self.walk(Target::SwitchOnDisabled))
@@ -590,6 +706,17 @@ impl<'md, const S: usize, const P: usize> EcatDrive<'md, S, P> {
     /// The group, e.g. for its SubDevices' identities.
     pub fn group(&self) -> &OpGroup<S, P> {
         &self.group
+    }
+
+    /// The driven axis's SII identity (vendor id, product code, revision, serial; the device
+    /// type is not read, given as a CiA 402 servo's 0x00020192).
+    pub fn identity(&self) -> Identity {
+        self.identity
+    }
+
+    /// The driven axis's firmware profile.
+    pub fn profile(&self) -> &Profile {
+        &self.profile
     }
 
     /// The unit conversions read at bring-up.
@@ -617,16 +744,14 @@ impl<const S: usize, const P: usize> CyclicDrive for EcatDrive<'_, S, P> {
             self.counters.saturated += 1;
         }
         let fresh = Instant::now() <= deadline;
-        if !fresh {
-            self.counters.missed += 1;
-            self.counters.late += 1;
-        }
+        self.count_missed(cycle, fresh)?;
         let state = self.last.statusword_state();
         if state != Some(State::OperationEnabled) {
             return Err(EcatError::Fault {
                 cycle,
                 state,
                 statusword: self.last.statusword,
+                error_code: block_on(self.error_code()),
             });
         }
         let position = self.unwrap.update(self.last.position);
@@ -666,5 +791,24 @@ impl<const S: usize, const P: usize> CyclicDrive for EcatDrive<'_, S, P> {
     /// pulse after frame `k` and frame `k` reads the inputs of the pulse before it.
     fn grid_io_delay_cycles(&self) -> u32 {
         1
+    }
+
+    /// The causes by kind: the axis's CiA 402 fault, an AL error and DC out of sync are
+    /// drive faults; a SubDevice lost and a wrong working counter are bus errors; missed
+    /// cycles and exchanges timed out are lost feedback.
+    fn error_kind(error: &EcatError) -> Option<DriveErrorKind> {
+        Some(match error {
+            EcatError::Fault { .. } | EcatError::AlState { .. } => DriveErrorKind::DriveFault,
+            EcatError::SubDeviceLost { .. } | EcatError::WorkingCounter { .. } => {
+                DriveErrorKind::Bus
+            }
+            EcatError::MissedCycles { .. }
+            | EcatError::Exchange {
+                source: ethercrab::error::Error::Timeout(_),
+                ..
+            } => DriveErrorKind::FeedbackLost,
+            EcatError::Exchange { .. } => DriveErrorKind::Bus,
+            _ => DriveErrorKind::Other,
+        })
     }
 }

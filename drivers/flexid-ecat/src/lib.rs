@@ -15,6 +15,10 @@
 //!   core's plant physics, the same drive as flexid-vdrive's on CAN.
 //! * [`drive`]: [`EcatDrive`], a CiA 402 axis in CST on an ethercrab group in OP, the
 //!   fieldbus-independent `flexid_canopen::CyclicDrive` the sweep loop runs over.
+//! * [`profile`]: the firmware profile chosen from the SubDevice's SII identity.
+//! * [`emulated`]: a line of emulated servos in front of a plant file.
+//! * [`session`]: one MainDevice session (storage, link thread, discovery, bring-up, the
+//!   drive handed to the caller, the link stopped), over the emulated line or an interface.
 //! * [`inprocess`]: drives a [`Segment`] from ethercrab's `PduTx`/`PduRx` (no socket, no
 //!   root): the always-run test tier.
 //! * [`socket_link`] (Linux): serves a [`Segment`] on a network interface through an
@@ -31,17 +35,22 @@
 //! emulated dictionary enforces as CiA 301 does.
 
 pub mod drive;
+pub mod emulated;
 pub mod esc;
 pub mod frame;
 pub mod inprocess;
 mod le;
+pub mod profile;
 pub mod segment;
 pub mod servo;
+pub mod session;
 #[cfg(target_os = "linux")]
 pub mod socket_link;
 pub mod sync0_clock;
 
 pub use drive::{EcatConfig, EcatDrive, EcatError};
 pub use esc::{SubDevice, SubDeviceConfig};
+pub use profile::ProfileChoice;
 pub use segment::{Application, CycleStats, FrameReport, Segment};
 pub use servo::{Servo, ServoClock, ServoConfig};
+pub use session::{with_drive, Link, SessionDrive, SessionError};

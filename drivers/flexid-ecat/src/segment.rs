@@ -230,6 +230,7 @@ impl Segment {
             // Out to the end of the line and back: the frame returns through port 1 after
             // 2 (n - 1 - i) hops.
             let back = (i + 1 < n).then(|| arrival + 2 * (n - 1 - i) * self.hop_ns);
+            device.check_watchdog(arrival);
             let mut application = application.as_deref_mut().filter(|_| process_data);
             if let Some(app) = &mut application {
                 if device.al_state() >= AlState::SafeOp {

@@ -37,6 +37,7 @@
 //! `k` and before pulse `k + 1` reads the inputs latched at pulse `k` (the state before
 //! the torque of cycle `k - 1` acts): one cycle of I/O delay against lock-step.
 
+use crate::esc::al::{AlState, AlStatusCode};
 use crate::esc::dictionary::{Mappable, ObjectAccess, ObjectDictionary};
 use crate::esc::sii::Identity;
 use crate::esc::SubDeviceConfig;
@@ -70,7 +71,15 @@ pub mod object {
     pub const TORQUE_ACTUAL: u16 = 0x6077;
     /// Position encoder resolution: sub 1 encoder increments, sub 2 motor revolutions, u32.
     pub const ENCODER_RESOLUTION: u16 = 0x608F;
+    /// Error code, u16: the CiA 301 / 402 code of the last fault (0: none).
+    pub const ERROR_CODE: u16 = 0x603F;
 }
+
+/// Error code (0x603F) of an overload: excess torque (CiA 402).
+pub const ERROR_EXCESS_TORQUE: u16 = 0x8311;
+/// Error code (0x603F) of a lost synchronisation: the ESC left OP under the running axis
+/// (SYNC0 lost, process-data watchdog), CiA 301 "sync controller".
+pub const ERROR_SYNC: u16 = 0x8700;
 
 /// Mode of operation code of cyclic synchronous torque.
 pub const MODE_CST: i8 = 10;
@@ -101,6 +110,9 @@ pub struct ServoConfig {
     /// SYNC0 clock: consecutive missed cycles (pulses in OP without a frame) that fault
     /// the drive; 0: never (the outputs are held however long).
     pub fault_after_missed_cycles: u32,
+    /// Overload protection: consecutive cycles with a target torque beyond the peak torque
+    /// (clamped) after which the drive faults with excess torque (0x8311); 0: off.
+    pub overtorque_cycles: u32,
 }
 
 impl Default for ServoConfig {
@@ -113,6 +125,7 @@ impl Default for ServoConfig {
             increments_per_rev: 1 << 20,
             clock: ServoClock::LockStep,
             fault_after_missed_cycles: 100,
+            overtorque_cycles: 0,
         }
     }
 }
@@ -170,6 +183,7 @@ impl ServoConfig {
             &self.increments_per_rev.to_le_bytes(),
         );
         od.insert(object::ENCODER_RESOLUTION, 2, Ro, No, &1u32.to_le_bytes());
+        od.insert(object::ERROR_CODE, 0, Ro, No, &0u16.to_le_bytes());
     }
 
     /// An emulated SubDevice and the servo behind it, ready for [`crate::Segment::push_with`].
@@ -231,6 +245,12 @@ pub struct Servo<P> {
     /// SYNC0 clock: a frame has reached the outputs in OP (the watchdog is armed by the
     /// first one, as a sync manager watchdog is).
     armed: bool,
+    /// Consecutive cycles clamped to the peak torque.
+    clamped_cycles: u32,
+    /// SYNC0 was active when the axis was enabled in OP: its loss is a fault.
+    synchronised: bool,
+    /// A fault is present (its code in 0x603F) and not cleared.
+    fault: Option<u16>,
 }
 
 impl<P: Physics> Servo<P> {
@@ -250,6 +270,57 @@ impl<P: Physics> Servo<P> {
             missed_run: 0,
             watchdog: false,
             armed: false,
+            clamped_cycles: 0,
+            synchronised: false,
+            fault: None,
+        }
+    }
+
+    /// The fault present, as its error code (0x603F), if any.
+    pub fn fault(&self) -> Option<u16> {
+        self.fault
+    }
+
+    /// Records a fault: the error code into 0x603F, the torque off at once (the CiA 402
+    /// state follows through Fault reaction active at the next controlword).
+    fn raise_fault(&mut self, device: &mut SubDevice, code: u16) {
+        self.fault = Some(code);
+        self.applied_nm = 0.0;
+        let _ = device
+            .dictionary_mut()
+            .set(object::ERROR_CODE, 0, &code.to_le_bytes());
+    }
+
+    /// The synchronisation watch, at every latch of the inputs: an axis enabled in OP with
+    /// SYNC0 active that finds SYNC0 gone raises the AL error Fatal SYNC error (0x002C: the
+    /// ESC falls to SAFE-OP); an enabled axis whose ESC fell back to SAFE-OP (that error,
+    /// the process-data watchdog) faults with 0x8700 and drops its torque.
+    fn watch_synchronisation(&mut self, device: &mut SubDevice) {
+        let op = device.al_state() == AlState::Op;
+        let enabled = self.state == State::OperationEnabled;
+        if op && enabled && device.sync0().is_some() {
+            self.synchronised = true;
+        }
+        if op && self.synchronised && device.sync0().is_none() {
+            device.raise_al_error(AlStatusCode::FatalSyncError);
+        }
+        if device.al_state() == AlState::SafeOp && enabled && self.fault.is_none() {
+            self.raise_fault(device, ERROR_SYNC);
+            self.state = device_transition(self.state, Controlword(0), true);
+        }
+    }
+
+    /// The overload protection after each set-point: [`ServoConfig::overtorque_cycles`]
+    /// consecutive clamped cycles fault the drive with excess torque (0x8311).
+    fn watch_overload(&mut self, device: &mut SubDevice) {
+        self.clamped_cycles = if self.limited {
+            self.clamped_cycles + 1
+        } else {
+            0
+        };
+        let limit = self.config.overtorque_cycles;
+        if limit > 0 && self.clamped_cycles >= limit && self.fault.is_none() {
+            self.raise_fault(device, ERROR_EXCESS_TORQUE);
         }
     }
 
@@ -296,6 +367,7 @@ impl<P: Physics> Servo<P> {
     /// mode display); the ESC maps them into the next frame.
     fn publish_inputs(&mut self, device: &mut SubDevice) {
         self.stats.latches += 1;
+        self.watch_synchronisation(device);
         let s = self.physics.sample();
         let rated = self.config.rated_torque_nm;
         let position = (s.position_rad * self.inc_per_rad).round() as i64 as i32;
@@ -314,8 +386,9 @@ impl<P: Physics> Servo<P> {
     }
 
     /// Takes the controlword and target torque in the dictionary, steps the state machine
-    /// (`fault`: a fault is present) and the plant one cycle.
-    fn step_cycle(&mut self, device: &SubDevice, fault: bool) {
+    /// (`watchdog`: the SYNC0 watchdog holds the drive in fault, beside a raised fault) and
+    /// the plant one cycle.
+    fn step_cycle(&mut self, device: &mut SubDevice, watchdog: bool) {
         let od = device.dictionary();
         let cw = Controlword(
             od.get(object::CONTROLWORD, 0)
@@ -324,8 +397,14 @@ impl<P: Physics> Servo<P> {
         );
         let effective = cw.effective(self.previous_cw);
         self.previous_cw = cw;
-        self.state = device_transition(self.state, effective, fault);
-        let t = self.setpoint(od);
+        self.state = device_transition(self.state, effective, watchdog || self.fault.is_some());
+        if self.state == State::SwitchOnDisabled {
+            // Fault reset (transition 15) clears the fault.
+            self.fault = None;
+        }
+        let t = self.setpoint(device.dictionary());
+        self.watch_overload(device);
+        let t = if self.fault.is_some() { 0.0 } else { t };
         self.physics.step(t);
         self.applied_nm = t;
         self.stats.cycles += 1;
@@ -368,8 +447,12 @@ impl<P: Physics> Servo<P> {
         self.stats.pulses += 1;
         self.publish_inputs(device);
         if op {
-            let fault = self.watch_frames();
-            self.step_cycle(device, fault);
+            let watchdog = self.watch_frames();
+            if watchdog && self.fault.is_none() {
+                // the drive's process-data watchdog: a lost synchronisation (0x8700)
+                self.raise_fault(device, ERROR_SYNC);
+            }
+            self.step_cycle(device, watchdog);
         } else {
             self.physics.step(0.0);
             self.applied_nm = 0.0;

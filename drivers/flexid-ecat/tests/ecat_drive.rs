@@ -9,84 +9,30 @@
 //!   torques within half an encoder increment, with no lag;
 //! * `flexid_sweep::run_sweep` with a multisine over the [`EcatDrive`], and the chain
 //!   identified from the recording within 3 % of the plant file;
-//! * a SubDevice dropped from the segment mid-sweep: the working counter is wrong and the
-//!   sweep stops with a reason naming it.
+//!
+//! * on the servo's SYNC0 clock, the plant runs one cycle per pulse whatever the frames do:
+//!   a master that pauses shows as missed cycles with the torque held, and a pause past
+//!   the watchdog faults the drive.
+//!
+//! The faults that stop a sweep are in `tests/faults.rs`.
 
+mod common;
+
+use common::{bring_up, plan, plant, servo_segment, Rig, CYCLE_HZ};
+use common::{Drive, MAX_FRAMES, MAX_PDI, MAX_PDU_DATA, MAX_SUBDEVICES};
 use ethercrab::{MainDevice, MainDeviceConfig, PduStorage, Timeouts};
 use flexid_canopen::cia402::State;
 use flexid_canopen::CyclicDrive;
 use flexid_core::analysis::{analyze, AnalysisOptions};
-use flexid_core::excitation::MultisineDesign;
 use flexid_core::model::Chain;
-use flexid_core::plant::physics::LinearChain;
-use flexid_core::plant::PlantFile;
 use flexid_core::sim::{simulate_position, SimOptions};
-use flexid_ecat::esc::sii::Identity;
-use flexid_ecat::inprocess::{LinkError, SegmentLink, SharedSegment};
+use flexid_ecat::inprocess::{SegmentLink, SharedSegment};
 use flexid_ecat::{EcatConfig, EcatDrive, Segment, ServoClock, ServoConfig};
-use flexid_sweep::{run_sweep, Pacing, StopReason, SweepPlan};
+use flexid_sweep::{run_sweep, StopReason};
 use futures_lite::future::block_on;
 use std::sync::atomic::AtomicBool;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
-
-const MAX_FRAMES: usize = 16;
-const MAX_PDU_DATA: usize = PduStorage::element_size(1100);
-const MAX_SUBDEVICES: usize = 4;
-const MAX_PDI: usize = 64;
-/// The cycle rate of every test here: 4 kHz, out of CAN's reach.
-const CYCLE_HZ: f64 = 4000.0;
-const PLANT: &str = include_str!("../../../plants/e2e_3mass.toml");
-
-type Drive = EcatDrive<'static, MAX_SUBDEVICES, MAX_PDI>;
-
-fn plant() -> PlantFile {
-    PlantFile::parse(PLANT, "plants/e2e_3mass.toml").expect("plant file")
-}
-
-/// `n` servos in a line, each in front of the plant file's chain stepped at `CYCLE_HZ`.
-fn servo_segment(n: usize) -> SharedSegment {
-    let p = plant();
-    let config = ServoConfig::from_plant(&p);
-    let mut segment = Segment::new();
-    for i in 0..n {
-        let identity = Identity {
-            vendor_id: 0x0A1D,
-            product_code: 0x0402_0000,
-            revision: 1,
-            serial: i as u32,
-        };
-        let physics = LinearChain::new(&p.chain, CYCLE_HZ).expect("chain");
-        let (device, servo) = config
-            .build(identity, &format!("FLEXID-SERVO{i}"), physics)
-            .expect("SII");
-        segment.push_with(device, servo);
-    }
-    Arc::new(Mutex::new(segment))
-}
-
-/// A MainDevice (leaked: one per test) linked to `segment` on its own thread, the group
-/// discovered and brought up to an enabled CST axis 0.
-fn bring_up(segment: SharedSegment) -> (Drive, std::thread::JoinHandle<Result<(), LinkError>>) {
-    let storage: &'static PduStorage<MAX_FRAMES, MAX_PDU_DATA> =
-        Box::leak(Box::new(PduStorage::new()));
-    let (tx, rx, pdu_loop) = storage.try_split().expect("storage split once");
-    let timeouts = Timeouts {
-        state_transition: Duration::from_millis(500),
-        ..Timeouts::default()
-    };
-    let config = MainDeviceConfig {
-        dc_static_sync_iterations: 100,
-        ..MainDeviceConfig::default()
-    };
-    let md: &'static MainDevice<'static> =
-        Box::leak(Box::new(MainDevice::new(pdu_loop, timeouts, config)));
-    let link = SegmentLink::new(tx, rx, segment);
-    let link = std::thread::spawn(move || block_on(link));
-    let group = block_on(md.init_single_group::<MAX_SUBDEVICES, MAX_PDI>(|| 0)).expect("init");
-    let drive = EcatDrive::bring_up(md, group, EcatConfig::at_hz(CYCLE_HZ)).expect("bring-up");
-    (drive, link)
-}
 
 /// One increment of the plant file's 20-bit encoder, rad.
 fn increment() -> f64 {
@@ -96,7 +42,9 @@ fn increment() -> f64 {
 #[test]
 fn bring_up_enable_and_1000_lockstep_cycles_match_the_exact_chain_with_no_lag() {
     let seg = servo_segment(1);
-    let (mut d, link) = bring_up(seg.clone());
+    let Rig {
+        drive: mut d, link, ..
+    } = bring_up(seg.clone());
     assert_eq!(d.rated_torque_nm(), 1.0);
     assert_eq!(d.scaling().increments_per_rev, 1_048_576.0);
     assert_eq!(d.cycle_period(), Duration::from_micros(250));
@@ -183,24 +131,10 @@ fn assert_identified(got: &Chain, want: &Chain, tol: f64) {
     }
 }
 
-/// A multisine at 4 kHz on the per-mille grid of 1 N m: `period` samples, `periods` + 1
-/// transient period, 1-500 Hz.
-fn plan(period: usize, periods: usize) -> SweepPlan {
-    let mut design = MultisineDesign::new(CYCLE_HZ, period, [1.0, 500.0], 0.8, 0.4);
-    design.crest_iterations = 10;
-    let ms = design.generate().expect("multisine");
-    let torque: Vec<f64> = ms
-        .repeat(periods + 1)
-        .iter()
-        .map(|t| (t * 1000.0).round() / 1000.0)
-        .collect();
-    SweepPlan::new(CYCLE_HZ, torque, ms.info(periods, 1), Pacing::Lockstep)
-}
-
 #[test]
 fn a_lockstep_multisine_sweep_at_4_khz_identifies_the_chain_within_3_percent() {
     let seg = servo_segment(1);
-    let (mut d, _link) = bring_up(seg);
+    let mut d = bring_up(seg).drive;
     // 0.5 Hz lines (8000 samples), 1 transient + 4 periods.
     let plan = plan(8000, 4);
     let stop = AtomicBool::new(false);
@@ -237,61 +171,18 @@ fn a_lockstep_multisine_sweep_at_4_khz_identifies_the_chain_within_3_percent() {
     d.disable().expect("disable");
 }
 
-#[test]
-fn a_subdevice_dropped_mid_sweep_stops_it_with_the_working_counter_named() {
-    // Two servos in the group; the sweep drives the first, the second is pulled off the
-    // line after the second period.
-    let seg = servo_segment(2);
-    let (mut d, _link) = bring_up(seg.clone());
-    let plan = plan(400, 6);
-    let stop = AtomicBool::new(false);
-    let mut dropped_at = None;
-    let outcome = run_sweep(&mut d, &plan, &stop, &mut |p| {
-        if p.periods_done == 2 && dropped_at.is_none() {
-            let mut seg = seg.lock().expect("segment");
-            assert!(seg.remove(1).is_some());
-            dropped_at = Some(p.cycle);
-        }
-    });
-    let dropped_at = dropped_at.expect("dropped");
-    eprintln!("dropped after cycle {dropped_at}: {:?}", outcome.reason);
-    let StopReason::DriveError(text) = &outcome.reason else {
-        panic!("stop reason {:?}", outcome.reason);
-    };
-    assert!(outcome.reason.drive_failed());
-    assert!(text.contains("SubDevice lost"), "{text}");
-    assert!(text.contains("SubDevice 1 (0x1001)"), "{text}");
-    assert!(text.contains("working counter 3, expected 6"), "{text}");
-    assert_eq!(
-        outcome.recording.len() as u64,
-        dropped_at,
-        "rows up to the drop"
-    );
-    assert!(outcome.recording.len() < plan.torque_nm.len());
-}
-
 /// `servo_segment(1)` with the servo on its SYNC0 clock, faulting after `fault_after`
 /// missed cycles in a row, and the SYNC0 clock thread running on the link's wall clock.
 fn sync0_bring_up(
     fault_after: u32,
 ) -> (Drive, SharedSegment, flexid_ecat::sync0_clock::SegmentClock) {
     use flexid_ecat::sync0_clock::{run_sync0_clock, SegmentClock};
-    let p = plant();
     let config = ServoConfig {
         clock: ServoClock::Sync0,
         fault_after_missed_cycles: fault_after,
-        ..ServoConfig::from_plant(&p)
+        ..ServoConfig::from_plant(&plant())
     };
-    let identity = Identity {
-        vendor_id: 0x0A1D,
-        product_code: 0x0402_0000,
-        revision: 1,
-        serial: 0,
-    };
-    let physics = LinearChain::new(&p.chain, CYCLE_HZ).expect("chain");
-    let (device, servo) = config
-        .build(identity, "FLEXID-SERVO0", physics)
-        .expect("SII");
+    let (device, servo) = common::servo(&config, 0);
     let mut segment = Segment::new();
     segment.push_with(device, servo);
     let seg: SharedSegment = Arc::new(Mutex::new(segment));

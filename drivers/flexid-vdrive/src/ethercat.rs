@@ -11,7 +11,7 @@
 
 use crate::config::DrivePlant;
 use flexid_core::plant::physics::{LinearChain, PhysicsError};
-use flexid_ecat::esc::sii::{Identity, SiiError};
+use flexid_ecat::esc::sii::SiiError;
 use flexid_ecat::inprocess::SharedSegment;
 use flexid_ecat::socket_link::{LinkStats, SocketError, SocketLink};
 use flexid_ecat::sync0_clock::{run_sync0_clock, SegmentClock, Sync0ClockStats};
@@ -20,11 +20,10 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use thiserror::Error;
 
-/// Vendor id of the emulated SubDevices (a placeholder, as the CAN drive's 0x1018:1; not
-/// an ETG-assigned id).
-pub const VENDOR_ID: u32 = 0x0000_0F1D;
-/// Product code of the emulated CiA 402 servo.
-pub const PRODUCT_CODE: u32 = 0x0000_0402;
+/// Vendor id and product code of the emulated SubDevices: the `[ethercat]` identity of
+/// `firmware-profiles/flexid-vdrive.toml` (placeholders, not ETG-assigned ids), so that the
+/// MainDevice picks that profile.
+pub use flexid_ecat::emulated::{PRODUCT_CODE, VENDOR_ID};
 
 /// How to build the servos.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -95,12 +94,7 @@ pub fn servo_segment(
     let config = servo_config(plant, options);
     let mut segment = Segment::new();
     for position in 0..options.axes {
-        let identity = Identity {
-            vendor_id: VENDOR_ID,
-            product_code: PRODUCT_CODE,
-            revision: 1,
-            serial: position as u32,
-        };
+        let identity = flexid_ecat::emulated::identity(position as u32);
         let physics = LinearChain::new(&plant.plant.chain, options.cycle_hz).map_err(|source| {
             EthercatError::Physics {
                 cycle_hz: options.cycle_hz,

@@ -104,7 +104,9 @@ function selectedAxis() {
 function showAxis() {
   const a = selectedAxis();
   if (!a) { $('axis-info').textContent = 'no axis configured'; return; }
-  $('axis-info').textContent = `bus ${a.bus}, node ${a.node}, cycle ${a.cycle_hz} Hz ` +
+  const kind = a.bus_kind === 'ethercat' ? 'EtherCAT' : `CAN (${a.bus_kind})`;
+  const where = a.bus_kind === 'ethercat' ? `SubDevice ${a.node}` : `node ${a.node}`;
+  $('axis-info').textContent = `bus ${a.bus}: ${kind}, ${where}, cycle ${a.cycle_hz} Hz ` +
     `(band below ${a.cycle_hz / 2} Hz), ${a.state}`;
   $('band-hi').max = String(a.cycle_hz / 2);
   updateButtons();

@@ -49,6 +49,11 @@ pub enum AlStatusCode {
     BootstrapNotSupported = 0x0013,
     /// The mailbox sync managers do not match the SII (INIT -> PRE-OP).
     InvalidMailboxConfiguration = 0x0016,
+    /// The process-data watchdog expired: no outputs written within the sync manager
+    /// watchdog time (OP -> SAFE-OP).
+    SyncManagerWatchdog = 0x001B,
+    /// The SYNC0 signal the application runs on stopped (OP -> SAFE-OP): DC out of sync.
+    FatalSyncError = 0x002C,
     /// The output sync manager does not match the RxPDO mapping (PRE-OP -> SAFE-OP).
     InvalidOutputConfiguration = 0x001D,
     /// The input sync manager does not match the TxPDO mapping (PRE-OP -> SAFE-OP).
@@ -123,6 +128,14 @@ impl AlStateMachine {
         self.error.unwrap_or(AlStatusCode::NoError).code()
     }
 
+    /// A local AL error, raised by the ESC (watchdog) or the application behind it (SYNC
+    /// lost): the state falls back to SAFE-OP if it was above, the error flag is set with
+    /// `code` until the MainDevice acknowledges it.
+    pub fn fault(&mut self, code: AlStatusCode) {
+        self.state = self.state.min(AlState::SafeOp);
+        self.error = Some(code);
+    }
+
     /// Handles a write of `control` to AL control (bits 0..3 the requested state, bit 4 the
     /// error acknowledgement). Returns the state entered, if it changed.
     pub fn request(&mut self, control: u16, checks: &TransitionChecks) -> Option<AlState> {
@@ -195,6 +208,29 @@ mod tests {
         assert_eq!(al.request(0x08, &ALL_OK), Some(AlState::Op));
         assert_eq!(al.status_register(), 0x08);
         assert_eq!(al.request(0x01, &ALL_OK), Some(AlState::Init));
+    }
+
+    #[test]
+    fn a_local_error_drops_op_to_safe_op_until_acknowledged() {
+        let mut al = AlStateMachine::new();
+        for c in [0x02, 0x04, 0x08] {
+            al.request(c, &ALL_OK);
+        }
+        al.fault(AlStatusCode::SyncManagerWatchdog);
+        assert_eq!(al.state(), AlState::SafeOp);
+        assert_eq!(al.status_register(), 0x14);
+        assert_eq!(al.status_code_register(), 0x001B);
+        assert_eq!(
+            al.request(0x08, &ALL_OK),
+            None,
+            "blocked until acknowledged"
+        );
+        assert_eq!(al.request(0x18, &ALL_OK), Some(AlState::Op));
+        // Below SAFE-OP a local error keeps the state.
+        let mut al = AlStateMachine::new();
+        al.fault(AlStatusCode::FatalSyncError);
+        assert_eq!(al.state(), AlState::Init);
+        assert_eq!(al.status_code_register(), 0x002C);
     }
 
     #[test]

@@ -95,6 +95,9 @@ pub struct SubDevice {
     /// SYNC0 pulses handed out by [`SubDevice::take_sync0_pulses`] and the configuration
     /// they were counted under.
     sync0_taken: Option<(Sync0, u64)>,
+    /// Local time of the last process-data write into the outputs in OP, ns (the sync
+    /// manager watchdog's trigger); `None` until the first one after entering OP.
+    outputs_written_ns: Option<u64>,
 }
 
 impl SubDevice {
@@ -115,6 +118,7 @@ impl SubDevice {
             frame: FrameTimes::default(),
             last_mailbox: None,
             sync0_taken: None,
+            outputs_written_ns: None,
         };
         device.esc.write_to(&mut device.memory);
         device.sii.reset(&mut device.memory);
@@ -122,6 +126,16 @@ impl SubDevice {
             &mut device.memory,
             usize::from(registers::STATION_ALIAS),
             device.description.alias,
+        );
+        let _ = le::put_u16(
+            &mut device.memory,
+            usize::from(registers::WATCHDOG_DIVIDER),
+            registers::WATCHDOG_DIVIDER_DEFAULT,
+        );
+        let _ = le::put_u16(
+            &mut device.memory,
+            usize::from(registers::SM_WATCHDOG_TIME),
+            registers::SM_WATCHDOG_TIME_DEFAULT,
         );
         device.set_port1_linked(false);
         device.store_al_status();
@@ -146,9 +160,49 @@ impl SubDevice {
         self.al.state()
     }
 
-    /// The refusal pending acknowledgement, if any.
+    /// The refusal or local error pending acknowledgement, if any.
     pub fn al_error(&self) -> Option<AlStatusCode> {
         self.al.error()
+    }
+
+    /// A local AL error (the application behind the ESC lost SYNC0, ...): SAFE-OP with the
+    /// error flag and `code` in AL status, outputs no longer taken.
+    pub fn raise_al_error(&mut self, code: AlStatusCode) {
+        self.al.fault(code);
+        self.outputs_written_ns = None;
+        self.store_al_status();
+    }
+
+    /// Sets the sync manager watchdog time (0x0420) in watchdog units (100 us with the
+    /// power-up divider; 0 switches it off), as a SubDevice's EEPROM or PDI configures it.
+    pub fn set_sm_watchdog_time(&mut self, units: u16) {
+        let _ = le::put_u16(
+            &mut self.memory,
+            usize::from(registers::SM_WATCHDOG_TIME),
+            units,
+        );
+    }
+
+    /// The sync manager watchdog time from registers 0x0400 and 0x0420, ns; `None` when
+    /// switched off (0x0420 = 0).
+    pub fn sm_watchdog_ns(&self) -> Option<u64> {
+        let divider = le::u16_at(&self.memory, usize::from(registers::WATCHDOG_DIVIDER))?;
+        let time = le::u16_at(&self.memory, usize::from(registers::SM_WATCHDOG_TIME))?;
+        (time > 0).then(|| (u64::from(divider) + 2) * 40 * u64::from(time))
+    }
+
+    /// The sync manager watchdog, run by the segment before a frame reaches the SubDevice
+    /// at segment time `arrival_ns` (and before the application latches its inputs): in OP,
+    /// more than the watchdog time since the last output write and the ESC is in SAFE-OP
+    /// with AL status code 0x001B.
+    pub fn check_watchdog(&mut self, arrival_ns: u64) {
+        let (Some(last), Some(limit)) = (self.outputs_written_ns, self.sm_watchdog_ns()) else {
+            return;
+        };
+        let local = self.clock_origin_ns.wrapping_add(arrival_ns);
+        if self.al.state() == AlState::Op && local.saturating_sub(last) > limit {
+            self.raise_al_error(AlStatusCode::SyncManagerWatchdog);
+        }
     }
 
     pub fn dictionary(&self) -> &ObjectDictionary {
@@ -373,6 +427,9 @@ impl SubDevice {
                     }
                 }
             }
+        }
+        if written && self.al.state() == AlState::Op {
+            self.outputs_written_ns = Some(self.frame.local);
         }
         match access {
             Access::ReadWrite => u16::from(read) + 2 * u16::from(written),
@@ -626,7 +683,8 @@ impl SubDevice {
                     self.set_mailbox_full(n, false);
                 }
             }
-            AlState::PreOp | AlState::Bootstrap | AlState::Op => {}
+            AlState::Op => self.outputs_written_ns = None,
+            AlState::PreOp | AlState::Bootstrap => {}
         }
     }
 

@@ -57,6 +57,14 @@ pub const DC_SYSTEM_TIME_OFFSET: u16 = 0x0920;
 pub const DC_SYSTEM_TIME_DELAY: u16 = 0x0928;
 /// System time difference (u32: bit 31 the sign, bits 30..0 the magnitude in ns).
 pub const DC_SYSTEM_TIME_DIFFERENCE: u16 = 0x092C;
+/// Watchdog divider (u16): the watchdog's time unit is (divider + 2) x 40 ns.
+pub const WATCHDOG_DIVIDER: u16 = 0x0400;
+/// Sync manager (process data) watchdog time (u16), in watchdog units; 0 switches it off.
+pub const SM_WATCHDOG_TIME: u16 = 0x0420;
+/// An ESC's power-up watchdog divider: 2498, a unit of 100 us.
+pub const WATCHDOG_DIVIDER_DEFAULT: u16 = 2498;
+/// An ESC's power-up sync manager watchdog time: 1000 units, 100 ms.
+pub const SM_WATCHDOG_TIME_DEFAULT: u16 = 1000;
 /// Cyclic unit control (u8).
 pub const DC_CYCLIC_UNIT_CONTROL: u16 = 0x0980;
 /// Sync activation (u8): bit 0 cyclic operation, bit 1 SYNC0, bit 2 SYNC1.

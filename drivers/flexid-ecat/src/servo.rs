@@ -397,7 +397,11 @@ impl<P: Physics> Servo<P> {
         );
         let effective = cw.effective(self.previous_cw);
         self.previous_cw = cw;
-        self.state = device_transition(self.state, effective, watchdog || self.fault.is_some());
+        // A raised fault takes the drive to Fault; once there, a fault reset clears it (its
+        // condition, the torque or the synchronisation, is gone with the power stage off);
+        // the SYNC0 watchdog holds the drive in Fault while frames stay missing.
+        let raised = self.fault.is_some() && !self.state.is_fault();
+        self.state = device_transition(self.state, effective, watchdog || raised);
         if self.state == State::SwitchOnDisabled {
             // Fault reset (transition 15) clears the fault.
             self.fault = None;

@@ -79,6 +79,8 @@ pub fn servo_config(plant: &DrivePlant, options: &EthercatOptions) -> ServoConfi
         increments_per_rev: plant.drive.encoder_increments_per_rev,
         clock: options.clock,
         fault_after_missed_cycles: options.fault_after_missed_cycles,
+        // the torque is clamped to the peak, as on CAN; no overload fault
+        overtorque_cycles: 0,
     }
 }
 

@@ -17,7 +17,10 @@
 //! `a_s = e_s^T X` (`Z^-1` is symmetric, so `(P R)^T Z^-1 e_s = a_s^T`). One LU and `N`
 //! solves per line give the FRF and every derivative. `G` is symmetric (reciprocity: the
 //! paper's eq. (13)). The LU is the arm's alone, `n_a x n_a`, with the motors eliminated
-//! ([`reduced`]); the full `Z` ([`full`]) where that loses precision.
+//! ([`reduced`]); the full `Z` ([`full`]) where that loses precision. Several lines at
+//! once ([`FrfPlan::frf_lines_into`]) take a symmetric elimination without pivoting, four
+//! lines in the lanes of each vector ([`batched`]), and the pivoted LU on a line where
+//! that would lose precision.
 //!
 //! This is the continuous-time model. The measured FRF of a sampled drive (zero-order-hold
 //! torque) differs from it by a half-sample delay and a magnitude change of a few hundredths
@@ -27,13 +30,18 @@
 use super::pose::RigidPose;
 use super::springs::Flexibilities;
 use super::ManipulatorError;
+use batched::{BatchedSystem, Rows};
 use full::FullSystem;
 use nalgebra::DMatrix;
 use num_complex::Complex64;
 use reduced::ReducedSystem;
 
+pub mod batched;
 mod full;
 pub mod reduced;
+
+/// Lines per call of [`FrfPlan::frf_lines_into`] at most.
+pub const LINES_PER_BATCH: usize = batched::LANES;
 
 /// The model FRF matrices at a set of frequencies.
 #[derive(Debug, Clone, PartialEq)]
@@ -59,6 +67,8 @@ pub struct FrfPlan {
     full: FullSystem,
     /// The arm's system with the motors eliminated, where the pose allows it.
     reduced: Option<ReducedSystem>,
+    /// The same, [`LINES_PER_BATCH`] lines at once without pivoting.
+    batched: Option<BatchedSystem>,
     /// `X = Z^-1 P R` (`n x N`, row-major).
     x: Vec<Complex64>,
     /// The rows `a_s` of every pair (`S x N`) and the derivative factors (`2 S`) of
@@ -80,6 +90,7 @@ impl FrfPlan {
                 .collect(),
             full: FullSystem::new(pose),
             reduced: ReducedSystem::new(pose),
+            batched: BatchedSystem::new(pose),
             x: vec![Complex64::new(0.0, 0.0); n * axes],
             rows: vec![Complex64::new(0.0, 0.0); pose.springs.len() * axes],
             factors: vec![Complex64::new(0.0, 0.0); 2 * pose.springs.len()],
@@ -91,6 +102,7 @@ impl FrfPlan {
     pub(crate) fn full_form(pose: &RigidPose) -> Self {
         FrfPlan {
             reduced: None,
+            batched: None,
             ..FrfPlan::new(pose)
         }
     }
@@ -166,6 +178,99 @@ impl FrfPlan {
     ) -> Result<(), ManipulatorError> {
         let s = self.solve(f_hz, theta)?;
         self.gather(s, g);
+        self.pair_rows_into(s, theta, rows, factors);
+        Ok(())
+    }
+
+    /// `G` at the lines `f_hz` (at most [`LINES_PER_BATCH`]) into `g` (one `N x N`
+    /// row-major block per line): [`FrfPlan::frf_into`] of each line, the lines solved
+    /// together ([`batched`]).
+    pub fn frf_lines_into(
+        &mut self,
+        f_hz: &[f64],
+        theta: &Flexibilities,
+        g: &mut [Complex64],
+    ) -> Result<(), ManipulatorError> {
+        let nn = self.axes * self.axes;
+        let solved = self.solve_lines(f_hz, theta, Rows::Gears);
+        for (lane, (&f, g)) in f_hz.iter().zip(g.chunks_exact_mut(nn)).enumerate() {
+            let batched = match &self.batched {
+                Some(b) if solved[lane] => {
+                    b.g_into(lane, g);
+                    true
+                }
+                _ => false,
+            };
+            if !batched {
+                self.frf_into(f, theta, g)?;
+            }
+        }
+        Ok(())
+    }
+
+    /// [`FrfPlan::frf_and_pair_rows_into`] at the lines `f_hz` (at most
+    /// [`LINES_PER_BATCH`]), solved together: per line one block of `g` (`N x N`), of
+    /// `rows` (`S x N`) and of `factors` (`2 S`).
+    pub fn frf_and_pair_rows_lines_into(
+        &mut self,
+        f_hz: &[f64],
+        theta: &Flexibilities,
+        g: &mut [Complex64],
+        rows: &mut [Complex64],
+        factors: &mut [Complex64],
+    ) -> Result<(), ManipulatorError> {
+        let nn = self.axes * self.axes;
+        let (nr, nf) = (self.pairs.len() * self.axes, 2 * self.pairs.len());
+        let solved = self.solve_lines(f_hz, theta, Rows::All);
+        for (lane, (((&f, g), rows), factors)) in f_hz
+            .iter()
+            .zip(g.chunks_exact_mut(nn))
+            .zip(rows.chunks_exact_mut(nr))
+            .zip(factors.chunks_exact_mut(nf))
+            .enumerate()
+        {
+            let batched = match &self.batched {
+                Some(b) if solved[lane] => {
+                    b.x_into(lane, &mut self.x);
+                    Some(b.s(lane))
+                }
+                _ => None,
+            };
+            match batched {
+                Some(s) => {
+                    self.gather(s, g);
+                    self.pair_rows_into(s, theta, rows, factors);
+                }
+                None => self.frf_and_pair_rows_into(f, theta, g, rows, factors)?,
+            }
+        }
+        Ok(())
+    }
+
+    /// The batched solve of the lines `f_hz`, if the plan has one: which lanes it solved.
+    fn solve_lines(
+        &mut self,
+        f_hz: &[f64],
+        theta: &Flexibilities,
+        rows: Rows,
+    ) -> [bool; LINES_PER_BATCH] {
+        debug_assert!(f_hz.len() <= LINES_PER_BATCH);
+        debug_assert_eq!(theta.pairs(), self.pairs.len());
+        match &mut self.batched {
+            Some(b) => b.solve(f_hz, theta, rows),
+            None => [false; LINES_PER_BATCH],
+        }
+    }
+
+    /// The pair rows `a_s` and derivative factors of [`FrfPlan::frf_and_pair_rows_into`]
+    /// from the solved `X`.
+    fn pair_rows_into(
+        &self,
+        s: Complex64,
+        theta: &Flexibilities,
+        rows: &mut [Complex64],
+        factors: &mut [Complex64],
+    ) {
         let npairs = self.pairs.len();
         let axes = self.axes;
         for (p, &(a, m)) in self.pairs.iter().enumerate() {
@@ -183,7 +288,6 @@ impl FrfPlan {
             factors[p] = -s * theta.stiffness_nm_per_rad[p];
             factors[npairs + p] = -s * s * theta.damping_nms_per_rad[p];
         }
-        Ok(())
     }
 
     /// The FRF matrices at every frequency of `f_hz`.

@@ -19,7 +19,7 @@
 //! order one in scale).
 
 use super::cost::{abs_pow, db_of, Cost, Weighting, DB_PER_NEPER};
-use super::frf::FrfPlan;
+use super::frf::{FrfPlan, LINES_PER_BATCH};
 use super::pose::RigidPose;
 use super::sampled::SampledPose;
 use super::springs::Flexibilities;
@@ -405,6 +405,15 @@ fn parameter_spread(outcomes: &[StartOutcome], good: &[usize]) -> Vec<f64> {
         .collect()
 }
 
+/// The frequencies [Hz] of a batch of a pose's lines (the unused entries zero).
+fn batch_hz(f_hz: &[f64], batch: &[(usize, Vec<Use>)]) -> [f64; LINES_PER_BATCH] {
+    let mut f = [0.0; LINES_PER_BATCH];
+    for (f, (k, _)) in f.iter_mut().zip(batch) {
+        *f = f_hz[*k];
+    }
+    f
+}
+
 /// Where one cost term's line sits: the term and the line's position in it.
 #[derive(Debug, Clone, Copy)]
 struct Use {
@@ -429,9 +438,10 @@ struct Fit<'a> {
     w: Vec<Vec<f64>>,
     /// The error [dB] per term and line at the last cost pass.
     e: Vec<Vec<f64>>,
+    /// The FRF of a batch of lines ([`LINES_PER_BATCH`] blocks of `N x N`).
     g: Vec<Complex64>,
-    /// The pair rows and derivative factors of one line
-    /// ([`FrfPlan::frf_and_pair_rows_into`]).
+    /// The pair rows and derivative factors of a batch of lines
+    /// ([`FrfPlan::frf_and_pair_rows_lines_into`]).
     pair_rows: Vec<Complex64>,
     factors: Vec<Complex64>,
     /// One Jacobian row, and the rows gathered for `J^T J`.
@@ -483,9 +493,9 @@ impl<'a> Fit<'a> {
                 .iter()
                 .map(|t| vec![0.0; t.lines.len()])
                 .collect(),
-            g: vec![Complex64::new(0.0, 0.0); axes * axes],
-            pair_rows: vec![Complex64::new(0.0, 0.0); pairs * axes],
-            factors: vec![Complex64::new(0.0, 0.0); 2 * pairs],
+            g: vec![Complex64::new(0.0, 0.0); LINES_PER_BATCH * axes * axes],
+            pair_rows: vec![Complex64::new(0.0, 0.0); LINES_PER_BATCH * pairs * axes],
+            factors: vec![Complex64::new(0.0, 0.0); LINES_PER_BATCH * 2 * pairs],
             row: vec![0.0; 2 * pairs],
             block: jacobian_block::JacobianBlock::new(2 * pairs),
             lm: reweighted_lm::LmBuffers::default(),
@@ -561,17 +571,20 @@ impl<'a> Fit<'a> {
     /// The errors [dB] at the current `theta` into `e`; `None` when the model is singular
     /// on a line.
     fn error_pass(&mut self) -> Option<()> {
+        let nn = self.cost.axes * self.cost.axes;
         for (pose, lines) in self.lines.iter().enumerate() {
-            for (k, uses) in lines {
-                let f = self.cost.f_hz[pose][*k];
+            for batch in lines.chunks(LINES_PER_BATCH) {
+                let f = batch_hz(&self.cost.f_hz[pose], batch);
                 self.plans[pose]
-                    .frf_into(f, &self.theta, &mut self.g)
+                    .frf_lines_into(&f[..batch.len()], &self.theta, &mut self.g)
                     .ok()?;
-                for u in uses {
-                    let t = &self.cost.terms[u.term];
-                    self.e[u.term][u.j] = db_of(self.g[t.n * self.cost.axes + t.m])
-                        + self.offset_db[u.term][u.j]
-                        - t.measured_db[u.j];
+                for ((_, uses), g) in batch.iter().zip(self.g.chunks_exact(nn)) {
+                    for u in uses {
+                        let t = &self.cost.terms[u.term];
+                        self.e[u.term][u.j] = db_of(g[t.n * self.cost.axes + t.m])
+                            + self.offset_db[u.term][u.j]
+                            - t.measured_db[u.j];
+                    }
                 }
             }
         }
@@ -674,12 +687,13 @@ impl NormalEquations for Fit<'_> {
         jtj.fill(0.0);
         jtr.fill(0.0);
         self.block.clear();
+        let (nn, nr) = (axes * axes, npairs * axes);
         for (pose, lines) in self.lines.iter().enumerate() {
-            for (k, uses) in lines {
-                let f = self.cost.f_hz[pose][*k];
+            for batch in lines.chunks(LINES_PER_BATCH) {
+                let f = batch_hz(&self.cost.f_hz[pose], batch);
                 if self.plans[pose]
-                    .frf_and_pair_rows_into(
-                        f,
+                    .frf_and_pair_rows_lines_into(
+                        &f[..batch.len()],
                         &self.theta,
                         &mut self.g,
                         &mut self.pair_rows,
@@ -689,22 +703,27 @@ impl NormalEquations for Fit<'_> {
                 {
                     return false;
                 }
-                for u in uses {
-                    let t = &self.cost.terms[u.term];
-                    let g = self.g[t.n * axes + t.m];
-                    let sw = self.w[u.term][u.j].sqrt();
-                    let r = sw * (db_of(g) + self.offset_db[u.term][u.j] - t.measured_db[u.j]);
-                    // d(20 log10 |G|) = DB_PER_NEPER Re(dG / G), dG = factor a_n a_m
-                    let scale = g.inv() * (sw * DB_PER_NEPER);
-                    for (p, a) in self.pair_rows.chunks_exact(axes).enumerate() {
-                        let q = a[t.n] * a[t.m] * scale;
-                        self.row[p] = (self.factors[p] * q).re;
-                        self.row[npairs + p] = (self.factors[npairs + p] * q).re;
+                for (lane, (_, uses)) in batch.iter().enumerate() {
+                    let g_line = &self.g[lane * nn..(lane + 1) * nn];
+                    let rows = &self.pair_rows[lane * nr..(lane + 1) * nr];
+                    let factors = &self.factors[lane * np..(lane + 1) * np];
+                    for u in uses {
+                        let t = &self.cost.terms[u.term];
+                        let g = g_line[t.n * axes + t.m];
+                        let sw = self.w[u.term][u.j].sqrt();
+                        let r = sw * (db_of(g) + self.offset_db[u.term][u.j] - t.measured_db[u.j]);
+                        // d(20 log10 |G|) = DB_PER_NEPER Re(dG / G), dG = factor a_n a_m
+                        let scale = g.inv() * (sw * DB_PER_NEPER);
+                        for (p, a) in rows.chunks_exact(axes).enumerate() {
+                            let q = a[t.n] * a[t.m] * scale;
+                            self.row[p] = (factors[p] * q).re;
+                            self.row[npairs + p] = (factors[npairs + p] * q).re;
+                        }
+                        for (j, x) in jtr.iter_mut().zip(&self.row) {
+                            *j += x * r;
+                        }
+                        self.block.push(&self.row, jtj);
                     }
-                    for (j, x) in jtr.iter_mut().zip(&self.row) {
-                        *j += x * r;
-                    }
-                    self.block.push(&self.row, jtj);
                 }
             }
         }

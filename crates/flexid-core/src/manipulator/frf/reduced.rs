@@ -28,15 +28,47 @@ pub const MIN_D_OVER_W: f64 = 1e-6;
 
 /// One axis's motor and gear.
 #[derive(Debug, Clone, Copy)]
-struct Gear {
+pub(super) struct Gear {
     /// The gear pair's index in the parameters.
-    pair: usize,
+    pub(super) pair: usize,
     /// Its arm coordinate `a_i`.
-    arm: usize,
+    pub(super) arm: usize,
     /// The motor's arm-side inertia `m_i` [kg m^2].
-    inertia: f64,
+    pub(super) inertia: f64,
     /// Gear ratio `r_i` [-].
-    ratio: f64,
+    pub(super) ratio: f64,
+}
+
+/// A bearing pair: its index in the parameters, its arm coordinate.
+pub(super) type Bearing = (usize, usize);
+
+/// The motors' gears (per axis) and the bearing pairs of `pose`,
+/// where its motors can be eliminated: `None` when an axis has no gear pair or the motors
+/// are not the last coordinates (then only the full form applies).
+pub(super) fn gears_and_bearings(pose: &RigidPose) -> Option<(Vec<Gear>, Vec<Bearing>)> {
+    let na = pose.arm_coords();
+    let axes = pose.axes();
+    let mut gears: Vec<Option<Gear>> = vec![None; axes];
+    let mut bearings = Vec::new();
+    for (p, s) in pose.springs.iter().enumerate() {
+        match s.kind {
+            SpringKind::Gear { joint } => {
+                let m = pose.motors[joint];
+                gears[joint] = Some(Gear {
+                    pair: p,
+                    arm: s.arm_coord,
+                    inertia: m.arm_side_inertia_kgm2(),
+                    ratio: m.gear_ratio,
+                });
+            }
+            SpringKind::Bearing { .. } => bearings.push((p, s.arm_coord)),
+        }
+    }
+    let gears = gears.into_iter().collect::<Option<Vec<_>>>()?;
+    if (0..axes).any(|i| pose.motor_coord(i) != na + i) {
+        return None;
+    }
+    Some((gears, bearings))
 }
 
 /// The reduced system of one pose: the arm's base matrices and the LU's buffers.
@@ -64,26 +96,7 @@ impl ReducedSystem {
     pub(super) fn new(pose: &RigidPose) -> Option<Self> {
         let na = pose.arm_coords();
         let axes = pose.axes();
-        let mut gears: Vec<Option<Gear>> = vec![None; axes];
-        let mut bearings = Vec::new();
-        for (p, s) in pose.springs.iter().enumerate() {
-            match s.kind {
-                SpringKind::Gear { joint } => {
-                    let m = pose.motors[joint];
-                    gears[joint] = Some(Gear {
-                        pair: p,
-                        arm: s.arm_coord,
-                        inertia: m.arm_side_inertia_kgm2(),
-                        ratio: m.gear_ratio,
-                    });
-                }
-                SpringKind::Bearing { .. } => bearings.push((p, s.arm_coord)),
-            }
-        }
-        let gears = gears.into_iter().collect::<Option<Vec<_>>>()?;
-        if (0..axes).any(|i| pose.motor_coord(i) != na + i) {
-            return None;
-        }
+        let (gears, bearings) = gears_and_bearings(pose)?;
         Some(ReducedSystem {
             na,
             mass: pose.arm_mass.transpose().as_slice().to_vec(),

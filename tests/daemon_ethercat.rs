@@ -93,3 +93,44 @@ async fn an_interface_that_cannot_be_opened_fails_the_sweep_naming_it_and_cap_ne
     );
     assert!(reason.contains("CAP_NET_RAW"), "{reason}");
 }
+
+/// The same EtherCAT axis from the web page in headless chromium (`tests/browser/ethercat.mjs`):
+/// its line names EtherCAT, the SubDevice and the 4 kHz cycle; a multisine sweep started
+/// from the page ends with the model drawn over the measurement and a parameter table whose
+/// inertias and stiffnesses are the plant file's within 3 %.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_ethercat_sweep_from_the_web_page_shows_the_identified_plant() {
+    use daemon_common::browser::{browser_available, result_value, run_script};
+    if !browser_available() {
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let token = token_file(tmp.path(), 0o600);
+    let cfg = ethercat_config(tmp.path(), &token, "");
+    let d = DaemonProc::start(FLEXID, &cfg);
+    let run = run_script(
+        "ethercat.mjs",
+        &d.base,
+        "ethercat-sweep.png",
+        &[("FLEXID_AXIS", "e1")],
+    )
+    .await;
+    let (j, c) = plant_truth(&plant_path());
+    let shown = |prefix: &str, k: usize| result_value(&run.stdout, &format!("{prefix}{}", k + 1));
+    for (k, want) in j.iter().enumerate() {
+        let got = shown("J", k);
+        assert!(
+            (got / want - 1.0).abs() < 0.03,
+            "J{}: the page shows {got}, the plant has {want}",
+            k + 1
+        );
+    }
+    for (k, want) in c.iter().enumerate() {
+        let got = shown("c", k);
+        assert!(
+            (got / want - 1.0).abs() < 0.03,
+            "c{}: the page shows {got}, the plant has {want}",
+            k + 1
+        );
+    }
+}

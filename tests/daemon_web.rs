@@ -6,9 +6,8 @@
 
 mod daemon_common;
 
+use daemon_common::browser::{browser_available, result_value, run_script};
 use daemon_common::*;
-use std::path::{Path, PathBuf};
-use std::process::Command;
 
 #[tokio::test]
 async fn the_page_is_served_without_a_token_and_holds_no_secret() {
@@ -86,83 +85,21 @@ async fn the_page_is_served_without_a_token_and_holds_no_secret() {
     d.stop().await;
 }
 
-fn browser_dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/browser")
-}
-
-/// Why the browser test cannot run here, if it cannot.
-fn missing_tools() -> Option<String> {
-    let chromium = std::env::var("CHROMIUM").unwrap_or_else(|_| "/usr/bin/chromium".into());
-    if !Path::new(&chromium).exists() {
-        return Some(format!(
-            "{chromium} is absent (apt-get install -y chromium)"
-        ));
-    }
-    if Command::new("node").arg("--version").output().is_err() {
-        return Some("node is absent (apt-get install -y nodejs npm)".into());
-    }
-    if !browser_dir()
-        .join("node_modules/playwright-core/package.json")
-        .exists()
-    {
-        return Some("tests/browser/node_modules is absent (npm ci in tests/browser)".into());
-    }
-    None
-}
-
-/// A `NAME=value` number from the script's `browser: result ...` line.
-fn result_value(out: &str, name: &str) -> f64 {
-    let line = out
-        .lines()
-        .find(|l| l.starts_with("browser: result "))
-        .unwrap_or_else(|| panic!("no result line in:\n{out}"));
-    line.split_whitespace()
-        .find_map(|w| w.strip_prefix(&format!("{name}=")))
-        .and_then(|v| v.parse().ok())
-        .unwrap_or_else(|| panic!("no {name} in {line}"))
-}
-
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn browser_watches_the_bode_plot_grow_aborts_and_reads_the_parameters() {
-    if let Some(why) = missing_tools() {
-        if std::env::var("CI").as_deref() == Ok("true") {
-            panic!("browser test needs: {why}");
-        }
-        eprintln!("skipped: browser test: {why}");
+    if !browser_available() {
         return;
     }
     let tmp = tempfile::tempdir().unwrap();
     let d = TestDaemon::start(tmp.path(), "").await;
-    let shots = Path::new(env!("CARGO_MANIFEST_DIR")).join("target/browser");
-    std::fs::create_dir_all(&shots).unwrap();
-    let shot = shots.join("bode-live.png");
-    let _ = std::fs::remove_file(&shot);
-    let mut cmd = Command::new("node");
-    cmd.arg("bode.mjs")
-        .current_dir(browser_dir())
-        .env("FLEXID_URL", d.url(""))
-        .env("FLEXID_TOKEN", TOKEN)
-        .env("FLEXID_SCREENSHOT", &shot)
-        .env("FLEXID_LIVE_AXIS", "slow")
-        .env("FLEXID_DONE_AXIS", "fast");
-    let out = tokio::task::spawn_blocking(move || cmd.output())
-        .await
-        .unwrap()
-        .expect("node runs");
-    let stdout = String::from_utf8_lossy(&out.stdout).to_string();
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    println!("{stdout}");
-    eprintln!("{stderr}");
-    assert!(out.status.success(), "the browser script failed:\n{stderr}");
-    assert!(stdout.contains("browser: ok"), "{stdout}");
-    // the screenshot of the live Bode page is there and is a PNG
-    let png = std::fs::read(&shot).expect("screenshot written");
-    assert!(
-        png.starts_with(b"\x89PNG") && png.len() > 10_000,
-        "{}",
-        png.len()
-    );
-    println!("screenshot of the live Bode page: {}", shot.display());
+    let run = run_script(
+        "bode.mjs",
+        &d.url(""),
+        "bode-live.png",
+        &[("FLEXID_LIVE_AXIS", "slow"), ("FLEXID_DONE_AXIS", "fast")],
+    )
+    .await;
+    let stdout = run.stdout;
     // the table the browser read holds the simulated chain (2e-3, 4e-3 kg m^2, 200 N m/rad)
     let (j1, j2, c1) = (
         result_value(&stdout, "J1"),
@@ -202,11 +139,7 @@ async fn browser_watches_the_bode_plot_grow_aborts_and_reads_the_parameters() {
 /// every element; the stiffnesses the page shows are the simulated robot's within 5 %.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn browser_shows_the_robots_bode_matrix_and_its_identified_model() {
-    if let Some(why) = missing_tools() {
-        if std::env::var("CI").as_deref() == Ok("true") {
-            panic!("browser test needs: {why}");
-        }
-        eprintln!("skipped: browser test: {why}");
+    if !browser_available() {
         return;
     }
     let tmp = tempfile::tempdir().unwrap();
@@ -215,29 +148,8 @@ async fn browser_shows_the_robots_bode_matrix_and_its_identified_model() {
         "[robot]\nname = \"arm\"\nperiods = 2\ntransient_periods = 1\n",
     )
     .await;
-    let shots = Path::new(env!("CARGO_MANIFEST_DIR")).join("target/browser");
-    std::fs::create_dir_all(&shots).unwrap();
-    let shot = shots.join("robot-bode-matrix.png");
-    let _ = std::fs::remove_file(&shot);
-    let mut cmd = Command::new("node");
-    cmd.arg("robot.mjs")
-        .current_dir(browser_dir())
-        .env("FLEXID_URL", d.url(""))
-        .env("FLEXID_TOKEN", TOKEN)
-        .env("FLEXID_SCREENSHOT", &shot);
-    let out = tokio::task::spawn_blocking(move || cmd.output())
-        .await
-        .unwrap()
-        .expect("node runs");
-    let stdout = String::from_utf8_lossy(&out.stdout).to_string();
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    println!("{stdout}");
-    eprintln!("{stderr}");
-    assert!(out.status.success(), "the browser script failed:\n{stderr}");
-    assert!(stdout.contains("browser: ok"), "{stdout}");
-    let png = std::fs::read(&shot).expect("screenshot written");
-    assert!(png.starts_with(b"\x89PNG") && png.len() > 10_000);
-    println!("screenshot of the Bode matrix: {}", shot.display());
+    let run = run_script("robot.mjs", &d.url(""), "robot-bode-matrix.png", &[]).await;
+    let stdout = run.stdout;
     let svc = d.service();
     let robot = svc.robot.as_ref().unwrap();
     for (j, name) in robot.robot.parameter_names().iter().take(12).enumerate() {

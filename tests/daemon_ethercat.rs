@@ -116,21 +116,14 @@ async fn an_ethercat_sweep_from_the_web_page_shows_the_identified_plant() {
     )
     .await;
     let (j, c) = plant_truth(&plant_path());
-    let shown = |prefix: &str, k: usize| result_value(&run.stdout, &format!("{prefix}{}", k + 1));
-    for (k, want) in j.iter().enumerate() {
-        let got = shown("J", k);
-        assert!(
-            (got / want - 1.0).abs() < 0.03,
-            "J{}: the page shows {got}, the plant has {want}",
-            k + 1
-        );
-    }
-    for (k, want) in c.iter().enumerate() {
-        let got = shown("c", k);
-        assert!(
-            (got / want - 1.0).abs() < 0.03,
-            "c{}: the page shows {got}, the plant has {want}",
-            k + 1
-        );
+    for (prefix, truth) in [("J", &j), ("c", &c)] {
+        for (k, want) in truth.iter().enumerate() {
+            let name = format!("{prefix}{}", k + 1);
+            let got = result_value(&run.stdout, &name);
+            assert!(
+                (got / want - 1.0).abs() < 0.03,
+                "{name}: the page shows {got}, the plant has {want}"
+            );
+        }
     }
 }

@@ -31,7 +31,7 @@ await runPage({ width: 1200, height: 1400, httpErrors: true }, async (page) => {
       const s = document.getElementById('bode-matrix');
       return s.dataset.axes !== '0' && /completed/.test(document.getElementById('robot-state').textContent)
         && s.querySelector('text.title') && s.querySelector('text.title').textContent.includes(p);
-    }, pose, { timeout: 120000 });
+    }, pose, { timeout: 300000 });
     const m = await page.$eval('#bode-matrix', (s) => ({
       axes: Number(s.dataset.axes), lines: Number(s.dataset.lines), model: s.dataset.model,
       cells: s.querySelectorAll('g[data-element]').length,

@@ -78,17 +78,26 @@ pub struct EcatConfig {
     /// pulse ([`CyclicDrive::cycle_grid`]), so that its frame reaches the SubDevices after
     /// that pulse latched the inputs and before the next one applies the outputs.
     pub send_after_sync0: Duration,
-    /// Most consecutive cycles whose exchange may end after their deadline before the
-    /// sweep is stopped with [`EcatError::MissedCycles`].
+    /// Consecutive cycles whose exchange may end after their deadline before the sweep is
+    /// stopped with [`EcatError::MissedCycles`]: the least count; the limit applied is
+    /// [`EcatConfig::missed_cycles_limit`] (this many and at least
+    /// [`EcatConfig::max_missed_time`] worth of them).
     pub max_missed_cycles: u32,
+    /// The shortest run of late exchanges that stops the sweep, as a time (default 50 ms,
+    /// as the CANopen master's `max_missed_time`): a count alone is 1 ms at 4 kHz, shorter
+    /// than one scheduling stall of a host without a real-time kernel, while a late
+    /// exchange only holds the last torque for a cycle (the sweep records the held row).
+    /// The drive's own process-data watchdog (the emulated servo's 100 cycles, an ESC's
+    /// sync manager watchdog of typically 100 ms) is the safety limit beside it.
+    pub max_missed_time: Duration,
     /// How the driven axis's firmware profile is chosen.
     pub profile: ProfileChoice,
 }
 
 impl EcatConfig {
     /// Axis 0 at `cycle_hz` (Hz), SYNC0 starting 1 ms after configuration, 20 exchanges to
-    /// enable, a real-time cycle starting a fifth of a cycle after SYNC0, at most 4 missed
-    /// cycles in a row, the profile chosen by identity.
+    /// enable, a real-time cycle starting a fifth of a cycle after SYNC0, late exchanges in
+    /// a row for at most 10 cycles and 50 ms, the profile chosen by identity.
     pub fn at_hz(cycle_hz: f64) -> Self {
         let cycle = Duration::from_secs_f64(1.0 / cycle_hz);
         Self {
@@ -97,9 +106,19 @@ impl EcatConfig {
             sync0_start_delay: Duration::from_millis(1),
             enable_exchanges: 20,
             send_after_sync0: cycle / 5,
-            max_missed_cycles: 4,
+            max_missed_cycles: 10,
+            max_missed_time: Duration::from_millis(50),
             profile: ProfileChoice::ByIdentity,
         }
+    }
+
+    /// Consecutive late exchanges allowed: `max_missed_cycles`, or more when those are
+    /// shorter than `max_missed_time` at the cycle (the CANopen master's rule).
+    pub fn missed_cycles_limit(&self) -> u32 {
+        let period_ns = self.cycle.as_nanos().max(1);
+        let by_time = self.max_missed_time.as_nanos().div_ceil(period_ns);
+        self.max_missed_cycles
+            .max(by_time.min(u128::from(u32::MAX)) as u32)
     }
 }
 
@@ -669,7 +688,7 @@ impl<'md, const S: usize, const P: usize> EcatDrive<'md, S, P> {
     }
 
     /// Counts a cycle whose exchange ended after its deadline (`fresh` false); more than
-    /// [`EcatConfig::max_missed_cycles`] in a row is an error.
+    /// [`EcatConfig::missed_cycles_limit`] in a row is an error.
     fn count_missed(&mut self, cycle: u64, fresh: bool) -> Result<(), EcatError> {
         if fresh {
             self.missed_in_a_row = 0;
@@ -678,11 +697,12 @@ impl<'md, const S: usize, const P: usize> EcatDrive<'md, S, P> {
         self.counters.missed += 1;
         self.counters.late += 1;
         self.missed_in_a_row += 1;
-        if self.missed_in_a_row > self.config.max_missed_cycles {
+        let budget = self.config.missed_cycles_limit();
+        if self.missed_in_a_row > budget {
             return Err(EcatError::MissedCycles {
                 cycle,
                 consecutive: self.missed_in_a_row,
-                budget: self.config.max_missed_cycles,
+                budget,
                 period_us: self.config.cycle.as_micros() as u64,
             });
         }

@@ -30,7 +30,7 @@
 use super::pose::RigidPose;
 use super::springs::Flexibilities;
 use super::ManipulatorError;
-use batched::{BatchedSystem, Rows};
+use batched::{BatchedSystem, KeptLines, Rows};
 use full::FullSystem;
 use nalgebra::DMatrix;
 use num_complex::Complex64;
@@ -75,6 +75,9 @@ pub struct FrfPlan {
     /// [`FrfPlan::frf_and_derivatives_into`].
     rows: Vec<Complex64>,
     factors: Vec<Complex64>,
+    /// Per batch of lines: its last solve by [`FrfPlan::frf_lines_keep_into`], for
+    /// [`FrfPlan::frf_and_pair_rows_lines_kept_into`] (allocated at a batch's first use).
+    kept: Vec<KeptLines>,
 }
 
 impl FrfPlan {
@@ -94,6 +97,7 @@ impl FrfPlan {
             x: vec![Complex64::new(0.0, 0.0); n * axes],
             rows: vec![Complex64::new(0.0, 0.0); pose.springs.len() * axes],
             factors: vec![Complex64::new(0.0, 0.0); 2 * pose.springs.len()],
+            kept: Vec::new(),
         }
     }
 
@@ -208,6 +212,71 @@ impl FrfPlan {
         Ok(())
     }
 
+    /// [`FrfPlan::frf_lines_into`], the solve kept as batch number `batch` of the caller's
+    /// (its factorisation `L D L^T` and the gears' rows of `X_a`), for a later
+    /// [`FrfPlan::frf_and_pair_rows_lines_kept_into`] at the same lines and `theta`.
+    pub fn frf_lines_keep_into(
+        &mut self,
+        batch: usize,
+        f_hz: &[f64],
+        theta: &Flexibilities,
+        g: &mut [Complex64],
+    ) -> Result<(), ManipulatorError> {
+        let Some(b) = &mut self.batched else {
+            return self.frf_lines_into(f_hz, theta, g);
+        };
+        while self.kept.len() <= batch {
+            self.kept.push(b.kept_lines());
+        }
+        let nn = self.axes * self.axes;
+        let kept = &mut self.kept[batch];
+        b.swap_lines(kept);
+        let solved = b.solve(f_hz, theta, Rows::Gears);
+        for (lane, g) in g.chunks_exact_mut(nn).take(f_hz.len()).enumerate() {
+            if solved[lane] {
+                b.g_into(lane, g);
+            }
+        }
+        b.swap_lines(kept);
+        kept.solved = solved;
+        kept.rows = Rows::Gears;
+        for (lane, (&f, g)) in f_hz.iter().zip(g.chunks_exact_mut(nn)).enumerate() {
+            if !solved[lane] {
+                self.frf_into(f, theta, g)?;
+            }
+        }
+        Ok(())
+    }
+
+    /// [`FrfPlan::frf_and_pair_rows_lines_into`] from the solve kept as batch `batch` by
+    /// [`FrfPlan::frf_lines_keep_into`], which must have been at the same lines `f_hz` and
+    /// `theta`: only the rows of `X_a` above the gears are solved (the same bits as a
+    /// fresh solve); the lines the elimination did not solve take the pivoted solve.
+    pub fn frf_and_pair_rows_lines_kept_into(
+        &mut self,
+        batch: usize,
+        f_hz: &[f64],
+        theta: &Flexibilities,
+        g: &mut [Complex64],
+        rows: &mut [Complex64],
+        factors: &mut [Complex64],
+    ) -> Result<(), ManipulatorError> {
+        let (Some(b), Some(kept)) = (&mut self.batched, self.kept.get_mut(batch)) else {
+            return self.frf_and_pair_rows_lines_into(f_hz, theta, g, rows, factors);
+        };
+        b.swap_lines(kept);
+        if kept.rows == Rows::Gears {
+            b.finish_rows();
+        }
+        let solved = kept.solved;
+        kept.rows = Rows::All;
+        let out = self.pair_rows_of_solved(&solved, f_hz, theta, g, rows, factors);
+        if let (Some(b), Some(kept)) = (&mut self.batched, self.kept.get_mut(batch)) {
+            b.swap_lines(kept);
+        }
+        out
+    }
+
     /// [`FrfPlan::frf_and_pair_rows_into`] at the lines `f_hz` (at most
     /// [`LINES_PER_BATCH`]), solved together: per line one block of `g` (`N x N`), of
     /// `rows` (`S x N`) and of `factors` (`2 S`).
@@ -219,9 +288,24 @@ impl FrfPlan {
         rows: &mut [Complex64],
         factors: &mut [Complex64],
     ) -> Result<(), ManipulatorError> {
+        let solved = self.solve_lines(f_hz, theta, Rows::All);
+        self.pair_rows_of_solved(&solved, f_hz, theta, g, rows, factors)
+    }
+
+    /// The rest of [`FrfPlan::frf_and_pair_rows_lines_into`] once the batched system holds
+    /// the solve of every row at `f_hz`: the lanes `solved` from it, the others by the
+    /// pivoted solve.
+    fn pair_rows_of_solved(
+        &mut self,
+        solved: &[bool; LINES_PER_BATCH],
+        f_hz: &[f64],
+        theta: &Flexibilities,
+        g: &mut [Complex64],
+        rows: &mut [Complex64],
+        factors: &mut [Complex64],
+    ) -> Result<(), ManipulatorError> {
         let nn = self.axes * self.axes;
         let (nr, nf) = (self.pairs.len() * self.axes, 2 * self.pairs.len());
-        let solved = self.solve_lines(f_hz, theta, Rows::All);
         for (lane, (((&f, g), rows), factors)) in f_hz
             .iter()
             .zip(g.chunks_exact_mut(nn))

@@ -449,6 +449,11 @@ struct Fit<'a> {
     block: jacobian_block::JacobianBlock,
     /// The local fit's buffers.
     lm: reweighted_lm::LmBuffers,
+    /// Whether the plans keep every batch's solve at the current `theta` and `e` holds its
+    /// errors (the last error pass was at `theta` and complete, and neither `theta` nor
+    /// the sampled form's ratio changed since): the normal equations then take up those
+    /// solves ([`FrfPlan::frf_and_pair_rows_lines_kept_into`]) and errors.
+    kept: bool,
 }
 
 impl<'a> Fit<'a> {
@@ -499,6 +504,7 @@ impl<'a> Fit<'a> {
             row: vec![0.0; 2 * pairs],
             block: jacobian_block::JacobianBlock::new(2 * pairs),
             lm: reweighted_lm::LmBuffers::default(),
+            kept: false,
         }
     }
 
@@ -572,11 +578,12 @@ impl<'a> Fit<'a> {
     /// on a line.
     fn error_pass(&mut self) -> Option<()> {
         let nn = self.cost.axes * self.cost.axes;
+        self.kept = false;
         for (pose, lines) in self.lines.iter().enumerate() {
-            for batch in lines.chunks(LINES_PER_BATCH) {
+            for (bi, batch) in lines.chunks(LINES_PER_BATCH).enumerate() {
                 let f = batch_hz(&self.cost.f_hz[pose], batch);
                 self.plans[pose]
-                    .frf_lines_into(&f[..batch.len()], &self.theta, &mut self.g)
+                    .frf_lines_keep_into(bi, &f[..batch.len()], &self.theta, &mut self.g)
                     .ok()?;
                 for ((_, uses), g) in batch.iter().zip(self.g.chunks_exact(nn)) {
                     for u in uses {
@@ -588,6 +595,7 @@ impl<'a> Fit<'a> {
                 }
             }
         }
+        self.kept = true;
         Some(())
     }
 
@@ -611,6 +619,8 @@ impl<'a> Fit<'a> {
         let FrfForm::Sampled { fs_hz } = form else {
             return Some(());
         };
+        // the errors kept are the former ratio's
+        self.kept = false;
         for (pose, lines) in self.lines.iter().enumerate() {
             let sampled = SampledPose::new(&self.poses[pose], &self.theta, fs_hz).ok()?;
             for (k, uses) in lines {
@@ -661,12 +671,15 @@ impl NormalEquations for Fit<'_> {
 
     fn set_theta(&mut self, theta: &[f64]) {
         let s = self.theta.pairs();
-        for (x, t) in self.theta.stiffness_nm_per_rad.iter_mut().zip(&theta[..s]) {
-            *x = t.exp();
+        let mut same = true;
+        let values = (self.theta.stiffness_nm_per_rad.iter_mut().zip(&theta[..s]))
+            .chain(self.theta.damping_nms_per_rad.iter_mut().zip(&theta[s..]));
+        for (x, t) in values {
+            let v = t.exp();
+            same &= v.to_bits() == x.to_bits();
+            *x = v;
         }
-        for (x, t) in self.theta.damping_nms_per_rad.iter_mut().zip(&theta[s..]) {
-            *x = t.exp();
-        }
+        self.kept &= same;
     }
 
     fn cost(&mut self, _: &mut ()) -> Option<f64> {
@@ -688,19 +701,18 @@ impl NormalEquations for Fit<'_> {
         jtr.fill(0.0);
         self.block.clear();
         let (nn, nr) = (axes * axes, npairs * axes);
+        let kept = self.kept;
         for (pose, lines) in self.lines.iter().enumerate() {
-            for batch in lines.chunks(LINES_PER_BATCH) {
-                let f = batch_hz(&self.cost.f_hz[pose], batch);
-                if self.plans[pose]
-                    .frf_and_pair_rows_lines_into(
-                        &f[..batch.len()],
-                        &self.theta,
-                        &mut self.g,
-                        &mut self.pair_rows,
-                        &mut self.factors,
-                    )
-                    .is_err()
-                {
+            for (bi, batch) in lines.chunks(LINES_PER_BATCH).enumerate() {
+                let f = &batch_hz(&self.cost.f_hz[pose], batch)[..batch.len()];
+                let plan = &mut self.plans[pose];
+                let (g, rows, factors) = (&mut self.g, &mut self.pair_rows, &mut self.factors);
+                let solved = if kept {
+                    plan.frf_and_pair_rows_lines_kept_into(bi, f, &self.theta, g, rows, factors)
+                } else {
+                    plan.frf_and_pair_rows_lines_into(f, &self.theta, g, rows, factors)
+                };
+                if solved.is_err() {
                     return false;
                 }
                 for (lane, (_, uses)) in batch.iter().enumerate() {
@@ -711,7 +723,14 @@ impl NormalEquations for Fit<'_> {
                         let t = &self.cost.terms[u.term];
                         let g = g_line[t.n * axes + t.m];
                         let sw = self.w[u.term][u.j].sqrt();
-                        let r = sw * (db_of(g) + self.offset_db[u.term][u.j] - t.measured_db[u.j]);
+                        // the error pass's error where kept (the same expression of the
+                        // same `g`: the same bits)
+                        let e = if kept {
+                            self.e[u.term][u.j]
+                        } else {
+                            db_of(g) + self.offset_db[u.term][u.j] - t.measured_db[u.j]
+                        };
+                        let r = sw * e;
                         // d(20 log10 |G|) = DB_PER_NEPER Re(dG / G), dG = factor a_n a_m
                         let scale = g.inv() * (sw * DB_PER_NEPER);
                         for (p, a) in rows.chunks_exact(axes).enumerate() {

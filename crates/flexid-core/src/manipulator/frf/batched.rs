@@ -17,7 +17,11 @@
 //! then the gears' arm coordinates in axis order. `B` is non-zero only in the gears' rows
 //! (`w_i r_i / d_i` at `(a_i, i)`), so the forward substitution starts at the first gear,
 //! and `G` needs `X_a` only in the gears' rows: the cost pass stops the back substitution
-//! there (the last `N` rows), the derivatives' pass runs it to the top.
+//! there (the last `N` rows), the derivatives' pass runs it to the top. A batch's solve can
+//! be kept aside ([`KeptLines`], swapped in and out without copying): the derivatives'
+//! pass at the same parameters then runs only the rest of the backward substitution
+//! ([`BatchedSystem::finish_rows`]), the same operations in the same order as a fresh
+//! solve of every row, so the same bits.
 //!
 //! Arithmetic per line for the paper's robot (12 arm coordinates, 6 axes): about 290
 //! complex multiply-adds for `L D L^T` and 200 for the cost pass's substitutions, against
@@ -93,6 +97,28 @@ pub(super) struct BatchedSystem {
     di: Vec<Lanes>,
     /// `w = 2 pi f` per lane [rad/s].
     omega: Lanes,
+}
+
+/// One batch's solve kept aside ([`BatchedSystem::swap_lines`]): the fields of
+/// [`BatchedSystem`] that hold the lines' state, and which lanes the elimination solved
+/// and for which rows.
+#[derive(Debug, Clone)]
+pub(super) struct KeptLines {
+    tr: Vec<Lanes>,
+    ti: Vec<Lanes>,
+    inv_r: Vec<Lanes>,
+    inv_i: Vec<Lanes>,
+    xr: Vec<Lanes>,
+    xi: Vec<Lanes>,
+    wr: Vec<Lanes>,
+    wi: Vec<Lanes>,
+    dr: Vec<Lanes>,
+    di: Vec<Lanes>,
+    omega: Lanes,
+    /// Per lane: solved by the elimination (else by the pivoted solve when asked).
+    pub(super) solved: [bool; LANES],
+    /// The rows of `X_a` solved.
+    pub(super) rows: Rows,
 }
 
 /// Index of `(i, j)`, `j <= i`, in a packed lower triangle.
@@ -350,15 +376,82 @@ impl BatchedSystem {
         }
         // backward: L^T x = y, from the last row up to the gears' first (the cost pass) or
         // to the top
-        let stop = match rows {
-            Rows::Gears => free,
-            Rows::All => 0,
-        };
-        for i in (stop..na).rev() {
+        self.back_substitute(free..na);
+        if rows == Rows::All {
+            self.back_substitute(0..free);
+        }
+    }
+
+    /// The rows `rows` of the backward substitution `L^T x = y`, from the last up (the
+    /// rows below them already solved).
+    #[inline(always)]
+    fn back_substitute(&mut self, rows: std::ops::Range<usize>) {
+        let na = self.na;
+        let axes = self.gears.len();
+        let (xr, xi) = (&mut self.xr, &mut self.xi);
+        for i in rows.rev() {
             for k in i + 1..na {
                 let (lr, li) = (self.tr[tri(k, i)], self.ti[tri(k, i)]);
                 row_sub_product(xr, xi, axes, i, k, &lr, &li);
             }
+        }
+    }
+
+    /// After a solve of [`Rows::Gears`] (its factorisation and gears' rows kept, or swapped
+    /// back in with [`BatchedSystem::swap_lines`]): the rows above the gears, so that `X_a`
+    /// is that of a solve of [`Rows::All`] to the bit (the same operations in the same
+    /// order: the backward substitution of the bearings' rows needs only `L` and the rows
+    /// below them).
+    pub(super) fn finish_rows(&mut self) {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU has AVX2 (checked just above)
+            unsafe { self.finish_rows_avx2() };
+            return;
+        }
+        self.back_substitute(0..self.free);
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn finish_rows_avx2(&mut self) {
+        self.back_substitute(0..self.free);
+    }
+
+    /// Exchanges the state of the lines solved last (factorisation, `X_a`, the motors'
+    /// `w_i` and `1 / d_i`, the lines' `w`) with `kept`'s: four lines' solve kept aside
+    /// without copying, and taken up again later.
+    pub(super) fn swap_lines(&mut self, kept: &mut KeptLines) {
+        std::mem::swap(&mut self.tr, &mut kept.tr);
+        std::mem::swap(&mut self.ti, &mut kept.ti);
+        std::mem::swap(&mut self.inv_r, &mut kept.inv_r);
+        std::mem::swap(&mut self.inv_i, &mut kept.inv_i);
+        std::mem::swap(&mut self.xr, &mut kept.xr);
+        std::mem::swap(&mut self.xi, &mut kept.xi);
+        std::mem::swap(&mut self.wr, &mut kept.wr);
+        std::mem::swap(&mut self.wi, &mut kept.wi);
+        std::mem::swap(&mut self.dr, &mut kept.dr);
+        std::mem::swap(&mut self.di, &mut kept.di);
+        std::mem::swap(&mut self.omega, &mut kept.omega);
+    }
+
+    /// Buffers to keep one batch's solve in ([`BatchedSystem::swap_lines`]), sized as the
+    /// system's.
+    pub(super) fn kept_lines(&self) -> KeptLines {
+        KeptLines {
+            tr: self.tr.clone(),
+            ti: self.ti.clone(),
+            inv_r: self.inv_r.clone(),
+            inv_i: self.inv_i.clone(),
+            xr: self.xr.clone(),
+            xi: self.xi.clone(),
+            wr: self.wr.clone(),
+            wi: self.wi.clone(),
+            dr: self.dr.clone(),
+            di: self.di.clone(),
+            omega: self.omega,
+            solved: [false; LANES],
+            rows: Rows::Gears,
         }
     }
 

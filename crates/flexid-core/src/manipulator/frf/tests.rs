@@ -359,3 +359,69 @@ fn every_build_of_the_batch_gives_the_same_bits() {
         assert_eq!(xa, xb);
     }
 }
+
+/// The derivatives' pass from the cost pass's kept solve
+/// ([`FrfPlan::frf_lines_keep_into`], then [`FrfPlan::frf_and_pair_rows_lines_kept_into`])
+/// gives the same bits as its fresh solve ([`FrfPlan::frf_and_pair_rows_lines_into`]), and
+/// the cost pass the same `G` as [`FrfPlan::frf_lines_into`]: the reference robot's poses
+/// at the truth and at a start, batches of four and a last one of three, two kept batches
+/// alive at once, and a made-up arm with a lane that takes the pivoted solve.
+#[test]
+fn the_kept_solve_gives_the_fresh_bits() {
+    let robot = crate::manipulator::reference::robot();
+    let truth = crate::manipulator::reference::perturbed_truth(&robot);
+    let start = crate::manipulator::identify::start_design(
+        &robot.nominal,
+        &crate::manipulator::IdentifyOptions::default(),
+    )[7]
+    .clone();
+    let lines: Vec<f64> = (0..23)
+        .map(|i| 2.0 * 150f64.powf(i as f64 / 22.0))
+        .collect();
+    let mut cases: Vec<(RigidPose, Flexibilities, Vec<f64>)> = Vec::new();
+    for (_, q) in robot.poses_of(crate::manipulator::flex_file::PoseRole::Identification) {
+        let pose = robot.pose(&q).unwrap();
+        cases.push((pose.clone(), truth.clone(), lines.clone()));
+        cases.push((pose, Flexibilities::from_log(&start), lines.clone()));
+    }
+    let (pose, mut theta) = two_axis_pose(1);
+    theta.damping_nms_per_rad[0] = 0.0;
+    let kb = pose.gravity_stiffness[(1, 1)] + theta.stiffness_nm_per_rad[0];
+    let f0 = (kb / pose.arm_mass[(1, 1)]).sqrt() / (2.0 * std::f64::consts::PI);
+    cases.push((
+        pose,
+        theta,
+        vec![f0 * 0.5, f0, f0 * 2.0, f0 * 3.0, f0 * 4.0],
+    ));
+    for (pose, theta, f_hz) in &cases {
+        let (mut kept, mut fresh) = (FrfPlan::new(pose), FrfPlan::new(pose));
+        let (ax, np) = (kept.axes(), 2 * kept.pairs());
+        let (nn, nr) = (ax * ax, kept.pairs() * ax);
+        let zero = Complex64::new(0.0, 0.0);
+        let lanes = LINES_PER_BATCH;
+        let buffers = || {
+            (
+                vec![zero; lanes * nn],
+                vec![zero; lanes * nr],
+                vec![zero; lanes * np],
+            )
+        };
+        let (mut gk, mut rk, mut fk) = buffers();
+        let (mut gf, mut rf, mut ff) = buffers();
+        let batches: Vec<&[f64]> = f_hz.chunks(lanes).collect();
+        // every batch's cost pass first, then every batch's derivatives' pass
+        for (b, f) in batches.iter().enumerate() {
+            kept.frf_lines_keep_into(b, f, theta, &mut gk).unwrap();
+            fresh.frf_lines_into(f, theta, &mut gf).unwrap();
+            assert_eq!(gk, gf, "cost pass, batch {b}");
+        }
+        for (b, f) in batches.iter().enumerate() {
+            kept.frf_and_pair_rows_lines_kept_into(b, f, theta, &mut gk, &mut rk, &mut fk)
+                .unwrap();
+            fresh
+                .frf_and_pair_rows_lines_into(f, theta, &mut gf, &mut rf, &mut ff)
+                .unwrap();
+            assert_eq!((&gk, &rk, &fk), (&gf, &rf, &ff), "derivatives, batch {b}");
+        }
+    }
+}

@@ -195,3 +195,60 @@ fn threads_do_not_change_the_result() {
     };
     assert_eq!(run(1), run(2));
 }
+
+/// The normal equations from the error pass's kept solves and errors (after a cost pass
+/// at the same `theta`) are those of a fresh pass to the bit: on the reference robot's
+/// two poses (the benchmark's problem), at the nominal springs and at a start.
+#[test]
+fn normal_equations_from_the_kept_solve_are_the_fresh_ones() {
+    let robot = crate::manipulator::reference::robot();
+    let truth = crate::manipulator::reference::perturbed_truth(&robot);
+    let mut poses = Vec::new();
+    let mut meas = Vec::new();
+    let f: Vec<f64> = (0..60)
+        .map(|i| 2.0 * 150f64.powf(i as f64 / 59.0))
+        .collect();
+    for (_, q) in robot.poses_of(crate::manipulator::flex_file::PoseRole::Identification) {
+        let pose = robot.pose(&q).unwrap();
+        let g = FrfPlan::new(&pose).frf(&f, &truth).unwrap().g;
+        // a made-up variance: 1 % of each element's magnitude squared plus a floor
+        let var = g
+            .iter()
+            .map(|g| g.map(|x| 1e-4 * x.norm_sqr() + 1e-12))
+            .collect();
+        meas.push(PoseMeasurement {
+            f_hz: f.clone(),
+            g,
+            var: Some(var),
+            var_sym: None,
+        });
+        poses.push(pose);
+    }
+    let spec = CostSpec {
+        weighting: Weighting::InverseVariance,
+        ..CostSpec::default()
+    };
+    let cost = Cost::new(&meas, spec).unwrap();
+    let starts = start_design(&robot.nominal, &IdentifyOptions::default());
+    for theta in [&starts[0], &starts[5]] {
+        let np = theta.len();
+        let mut fit = Fit::new(&poses, &cost);
+        fit.set_theta(theta);
+        fit.errors().unwrap();
+        fit.reweight();
+        assert!(fit.kept);
+        let (mut jtj_kept, mut jtr_kept) = (vec![0.0; np * np], vec![0.0; np]);
+        assert!(fit.normal_after_cost(&mut (), &mut jtj_kept, &mut jtr_kept));
+        fit.kept = false;
+        let (mut jtj, mut jtr) = (vec![0.0; np * np], vec![0.0; np]);
+        assert!(fit.normal_after_cost(&mut (), &mut jtj, &mut jtr));
+        assert_eq!(jtj_kept, jtj);
+        assert_eq!(jtr_kept, jtr);
+        // a different theta forgets the kept solves
+        let mut other = theta.clone();
+        other[0] += 0.1;
+        fit.kept = true;
+        fit.set_theta(&other);
+        assert!(!fit.kept);
+    }
+}

@@ -29,8 +29,8 @@ pub use multi::{
 pub use plan::{admission_check, default_heartbeats, Pacing, SweepPlan};
 pub use rows::{RecordedRows, Row, RowSink};
 pub use run::{
-    realtime_setup, run_sweep, run_sweep_into, run_sweep_on_cycle_thread, Progress, StopReason,
-    SweepEnd, SweepOutcome,
+    realtime_setup, run_sweep, run_sweep_into, run_sweep_on_cycle_thread, GridPlacement, Progress,
+    StopReason, SweepEnd, SweepOutcome,
 };
 pub use simulated::{SimulatedDrive, SimulatedFault, SimulatedPlant};
 

@@ -44,6 +44,8 @@ impl<D: CyclicDrive> CyclicDrive for LosingDrive<D> {
                     velocity_rad_s: prev.velocity_rad_s,
                     torque_nm: prev.torque_nm,
                     fresh: false,
+                    // the values are not the drive cycle's the frame read
+                    drive_cycle: None,
                     counters: self.counters_with(fb.counters),
                     ..fb
                 }

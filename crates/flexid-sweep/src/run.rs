@@ -153,6 +153,22 @@ pub struct SweepOutcome {
     pub ramp_cycles: usize,
     /// Why the ramp did not finish, if it did not.
     pub ramp_error: Option<String>,
+    /// Rows recorded from a lost feedback (filled from their fresh neighbours).
+    pub held_rows: u64,
+    /// Frames placed by the drive's own cycle count ([`flexid_canopen::Feedback::drive_cycle`]).
+    pub placement: GridPlacement,
+}
+
+/// Frames a drive that counts its own cycles saw outside their row's cycle (see
+/// [`flexid_canopen::Feedback::drive_cycle`]); zero without such a drive.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct GridPlacement {
+    /// Frames that passed the drive one or more cycles after their row's: the rows between
+    /// were recorded as held (the drive held its last torque).
+    pub late_passes: u64,
+    /// Frames that passed in the cycle of the row before: their set-point replaced that
+    /// row's, which never acted.
+    pub replaced_setpoints: u64,
 }
 
 impl SweepOutcome {
@@ -255,6 +271,11 @@ impl Schedule {
         self.map.instant(self.slot_ns)
     }
 
+    /// Moves the schedule `slots` slots on (the drive's cycles a late frame let pass).
+    pub(crate) fn skip(&mut self, slots: u64) {
+        self.slot_ns += slots * self.period_ns;
+    }
+
     /// The grid slots skipped since the last call (0 without a grid).
     pub(crate) fn take_skipped(&mut self) -> u64 {
         std::mem::take(&mut self.skipped)
@@ -332,6 +353,8 @@ pub fn run_sweep<D: CyclicDrive>(
         overruns: end.overruns,
         ramp_cycles: end.ramp_cycles,
         ramp_error: end.ramp_error,
+        held_rows: end.held_rows,
+        placement: end.placement,
     }
 }
 
@@ -359,6 +382,8 @@ pub struct SweepEnd {
     pub ramp_error: Option<String>,
     /// Rows recorded from a lost feedback (filled from their fresh neighbours in the sink).
     pub held_rows: u64,
+    /// Frames placed by the drive's own cycle count.
+    pub placement: GridPlacement,
 }
 
 /// [`run_sweep`] with the rows going into `sink` (the daemon's sink streams them per
@@ -410,6 +435,10 @@ pub fn run_sweep_into<D: CyclicDrive>(
         velocity_rad_s: 0.0,
         torque_actual_nm: 0.0,
     };
+    // The drive cycle of row 0 (drives that count their cycles, on the grid), and the
+    // frames that passed the drive later or earlier than their row's cycle.
+    let mut grid_base: Option<u64> = None;
+    let (mut late_passes, mut replaced_setpoints) = (0u64, 0u64);
     let mut k = 0;
     while k < n {
         if stop.load(Ordering::Relaxed) {
@@ -432,19 +461,17 @@ pub fn run_sweep_into<D: CyclicDrive>(
         // Slots of a drive's grid this loop was too late for: the drive held the last
         // torque through them; a held row each (the feedback filled from the neighbours),
         // so that row k stays the drive's cycle k.
-        for _ in 0..schedule.take_skipped() {
-            if k + 1 >= n {
-                break;
-            }
-            let held = Row {
-                torque_setpoint_nm: last_torque,
-                ..last_row
-            };
+        let skipped = schedule.take_skipped().min((n - 1 - k) as u64);
+        let held = Row {
+            torque_setpoint_nm: last_torque,
+            ..last_row
+        };
+        for _ in 0..skipped {
             fill.push(k, &held, false, sink);
-            rows += 1;
             report_due |= (k + 1) % report_every == 0;
             k += 1;
         }
+        rows += skipped as usize;
         let fb = match drive.cycle(plan.torque_nm[k], deadline) {
             Ok(fb) => fb,
             Err(e) => {
@@ -453,13 +480,52 @@ pub fn run_sweep_into<D: CyclicDrive>(
                 break;
             }
         };
+        // Where the feedback belongs on a drive that counts its own cycles (EtherCAT: the
+        // SYNC0 pulse its inputs were latched at), and so which cycle this set-point acts
+        // from; the timing alone cannot tell a frame that passed the drive in time and came
+        // back late from one that passed a pulse late.
+        let mut fresh = fb.fresh;
+        let mut replaced_setpoint = false;
+        if let (true, Some(m)) = (on_grid, fb.drive_cycle) {
+            let first = *grid_base.get_or_insert(m.saturating_sub(k as u64));
+            let row = m.saturating_sub(first);
+            if row > k as u64 {
+                // The frame passed `late` pulses after its own: the drive held the last
+                // torque through them (held rows, the feedback filled from the neighbours),
+                // and this set-point acts from the cycle after the one it read.
+                let late = (row - k as u64).min((n - 1 - k) as u64);
+                for _ in 0..late {
+                    fill.push(k, &held, false, sink);
+                    report_due |= (k + 1) % report_every == 0;
+                    k += 1;
+                }
+                rows += late as usize;
+                schedule.skip(late);
+                late_passes += 1;
+            } else if row < k as u64 {
+                // It passed in the cycle of the row before: that row's set-point never
+                // acted, this one replaced it.
+                replaced_setpoint = fill.set_last_setpoint(k - 1, fb.torque_setpoint_nm, sink);
+            }
+            // The inputs of the drive's cycle, wherever in the cycle the frame came back.
+            fresh = true;
+        }
+        if replaced_setpoint {
+            last_torque = fb.torque_setpoint_nm;
+            replaced_setpoints += 1;
+            if plan.pacing == Pacing::Realtime {
+                schedule.wait();
+            }
+            // row k is still to come: the same plan sample goes out again
+            continue;
+        }
         last_row = Row {
             torque_setpoint_nm: fb.torque_setpoint_nm,
             position_rad: fb.position_rad,
             velocity_rad_s: fb.velocity_rad_s,
             torque_actual_nm: fb.torque_nm,
         };
-        fill.push(k, &last_row, fb.fresh, sink);
+        fill.push(k, &last_row, fresh, sink);
         rows += 1;
         last_torque = fb.torque_setpoint_nm;
         let lost = fb.counters.lost - base_lost;
@@ -570,6 +636,10 @@ pub fn run_sweep_into<D: CyclicDrive>(
         ramp_cycles,
         ramp_error,
         held_rows: fill.held(),
+        placement: GridPlacement {
+            late_passes,
+            replaced_setpoints,
+        },
     }
 }
 

@@ -123,6 +123,7 @@ impl CyclicDrive for SimulatedDrive {
             torque_setpoint_nm: torque_nm,
             saturated: false,
             fresh: true,
+            drive_cycle: None,
             counters: self.counters,
         })
     }

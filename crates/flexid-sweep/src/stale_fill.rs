@@ -79,6 +79,29 @@ impl StaleFill {
         self.last_fresh = Some((k, *row));
     }
 
+    /// Sets the torque set-point of row `k`, the last one pushed (a later set-point reached
+    /// the drive in the same cycle and replaced it), in the fill and in `sink`. Returns
+    /// false, changing nothing, when `k` is not the last row pushed.
+    pub fn set_last_setpoint(&mut self, k: usize, torque_nm: f64, sink: &mut dyn RowSink) -> bool {
+        let last_pending = self.pending_from + self.pending.len();
+        if let Some(held) = self.pending.last_mut() {
+            if last_pending - 1 != k {
+                return false;
+            }
+            held.torque_setpoint_nm = torque_nm;
+            sink.push(k, held);
+            return true;
+        }
+        match &mut self.last_fresh {
+            Some((j, row)) if *j == k => {
+                row.torque_setpoint_nm = torque_nm;
+                sink.push(k, row);
+                true
+            }
+            _ => false,
+        }
+    }
+
     /// Whether a held row is waiting for the fresh row after it.
     pub fn waiting(&self) -> bool {
         !self.pending.is_empty()

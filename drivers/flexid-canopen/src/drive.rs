@@ -29,6 +29,11 @@ pub struct Feedback {
     /// All of this cycle's feedback arrived before the deadline; if not, the missing
     /// values are the previous cycle's.
     pub fresh: bool,
+    /// The drive's own cycle whose inputs this feedback holds, counted on the drive's clock
+    /// (EtherCAT: SYNC0 pulses, from the DC system time the frame read as it passed), so
+    /// the feedback can be placed where it belongs whenever the exchange came back; `None`
+    /// where the bus does not say (CANopen: the SYNC is the master's own).
+    pub drive_cycle: Option<u64>,
     /// Counters since enable.
     pub counters: Counters,
 }
@@ -48,6 +53,7 @@ impl Feedback {
             torque_setpoint_nm: 0.0,
             saturated: false,
             fresh: false,
+            drive_cycle: None,
             counters: Counters::default(),
         }
     }

@@ -682,6 +682,14 @@ impl<'md, const S: usize, const P: usize> EcatDrive<'md, S, P> {
         self.last_dc_time_ns % (self.config.cycle.as_nanos() as u64).max(1)
     }
 
+    /// The SYNC0 pulse the last exchange's inputs were latched at: the pulses counted in
+    /// the DC system time the frame read as it passed (SYNC0 at whole cycles of system
+    /// time, no shift); `None` before SYNC0 is located.
+    pub fn last_drive_cycle(&self) -> Option<u64> {
+        self.sync0?;
+        Some(self.last_dc_time_ns / (self.config.cycle.as_nanos() as u64).max(1))
+    }
+
     /// The round trip of the exchange the SYNC0 grid was located from.
     pub fn sync0_round_trip(&self) -> Option<Duration> {
         self.sync0.map(|e| e.rtt)
@@ -786,6 +794,7 @@ impl<const S: usize, const P: usize> CyclicDrive for EcatDrive<'_, S, P> {
             torque_setpoint_nm: self.scaling.torque_nm(setpoint.permille),
             saturated: setpoint.saturated,
             fresh,
+            drive_cycle: self.last_drive_cycle(),
             counters: self.counters,
         })
     }

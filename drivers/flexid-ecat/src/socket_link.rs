@@ -9,11 +9,23 @@
 //! (`PACKET_OUTGOING`) and frames the segment rejects are not answered (counted). One
 //! buffer, allocated when the link is made: no allocation per frame.
 //!
-//! The segment clock is a [`SegmentClock`] (the monotonic clock) shared with the SYNC0
-//! clock thread ([`crate::sync0_clock::run_sync0_clock`]).
+//! Time order. A real ESC is hardware: a frame passes it when it arrives on the wire and a
+//! SYNC0 pulse comes at its time, whatever the host does. An emulator is a process that a
+//! loaded host stops for milliseconds now and then (2 ms seen on a 2-core CI runner): a
+//! frame that arrived in time waits in the socket while the pulse after it is due, and a
+//! clock thread that fires that pulse first makes the servo miss a cycle the wire did not
+//! miss (3 % of a 4 kHz sweep's cycles there). So each frame carries the kernel's receive
+//! time (`SO_TIMESTAMPNS`) as its segment time, and [`SocketLink::serve_with_sync0`] runs
+//! frames and pulses on one thread in that order: after a wake-up, every queued frame
+//! first (each after the pulses due before its arrival), then the pulses due by now. A
+//! frame the master sent late stays late, as on a wire. Only its answer leaves late, which
+//! the MainDevice sees as a late exchange (its data was latched in time).
+//!
+//! The segment clock is a [`SegmentClock`] (the monotonic clock); the in-process tier runs
+//! the pulses on a clock thread of its own ([`crate::sync0_clock::run_sync0_clock`]).
 
 use crate::inprocess::SharedSegment;
-use crate::sync0_clock::SegmentClock;
+use crate::sync0_clock::{SegmentClock, Sync0ClockStats};
 use std::ffi::CString;
 use std::io;
 use std::os::fd::{AsRawFd, FromRawFd, OwnedFd};
@@ -66,8 +78,9 @@ pub struct RawSocket {
 /// One frame taken from the socket.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Received {
-    /// A frame of `len` bytes arrived from the wire.
-    Frame { len: usize },
+    /// A frame of `len` bytes arrived from the wire `age_ns` ago (the kernel's receive
+    /// time stamp against the clock now; 0 when the kernel gave none).
+    Frame { len: usize, age_ns: u64 },
     /// A frame this host sent (seen by packet sockets too), or one longer than the buffer.
     Skipped,
     /// Nothing within the wait.
@@ -127,6 +140,19 @@ impl RawSocket {
         if rc < 0 {
             return Err(socket.io("binding to the interface", io::Error::last_os_error()));
         }
+        // The kernel's receive time of each frame (CLOCK_REALTIME, in a control message);
+        // a kernel that refuses leaves frames unstamped (their time: when they are read).
+        let on: libc::c_int = 1;
+        // SAFETY: a valid int option of the size given.
+        unsafe {
+            libc::setsockopt(
+                socket.fd.as_raw_fd(),
+                libc::SOL_SOCKET,
+                libc::SO_TIMESTAMPNS,
+                (&on as *const libc::c_int).cast(),
+                std::mem::size_of::<libc::c_int>() as libc::socklen_t,
+            );
+        }
         Ok(socket)
     }
 
@@ -153,16 +179,20 @@ impl RawSocket {
         a
     }
 
-    /// Waits at most `wait` for a frame and receives it into `buffer`.
+    /// Waits at most `wait` (to the nanosecond; zero: only what is queued) for a frame and
+    /// receives it into `buffer`.
     pub fn receive(&self, buffer: &mut [u8], wait: Duration) -> Result<Received, SocketError> {
         let mut pfd = libc::pollfd {
             fd: self.fd.as_raw_fd(),
             events: libc::POLLIN,
             revents: 0,
         };
-        let ms = wait.as_millis().min(i32::MAX as u128) as i32;
-        // SAFETY: one valid pollfd.
-        let n = unsafe { libc::poll(&mut pfd, 1, ms) };
+        let timeout = libc::timespec {
+            tv_sec: wait.as_secs().min(i32::MAX as u64) as libc::time_t,
+            tv_nsec: wait.subsec_nanos() as libc::c_long,
+        };
+        // SAFETY: one valid pollfd, a valid timespec, no signal mask.
+        let n = unsafe { libc::ppoll(&mut pfd, 1, &timeout, std::ptr::null()) };
         if n < 0 {
             let e = io::Error::last_os_error();
             if e.kind() == io::ErrorKind::Interrupted {
@@ -175,16 +205,26 @@ impl RawSocket {
         }
         // SAFETY: sockaddr_ll is plain data.
         let mut from: libc::sockaddr_ll = unsafe { std::mem::zeroed() };
-        let mut from_len = std::mem::size_of::<libc::sockaddr_ll>() as libc::socklen_t;
-        // SAFETY: buffer and address are valid for the lengths given.
+        let mut iov = libc::iovec {
+            iov_base: buffer.as_mut_ptr().cast(),
+            iov_len: buffer.len(),
+        };
+        // Room for one SCM_TIMESTAMPNS control message (a timespec), u64-aligned.
+        let mut control = [0u64; 8];
+        // SAFETY: msghdr is plain data; all zeros is a valid value.
+        let mut msg: libc::msghdr = unsafe { std::mem::zeroed() };
+        msg.msg_name = (&mut from as *mut libc::sockaddr_ll).cast();
+        msg.msg_namelen = std::mem::size_of::<libc::sockaddr_ll>() as libc::socklen_t;
+        msg.msg_iov = &mut iov;
+        msg.msg_iovlen = 1;
+        msg.msg_control = control.as_mut_ptr().cast();
+        msg.msg_controllen = std::mem::size_of_val(&control) as _;
+        // SAFETY: every buffer the header points to is valid for the length given.
         let len = unsafe {
-            libc::recvfrom(
+            libc::recvmsg(
                 self.fd.as_raw_fd(),
-                buffer.as_mut_ptr().cast(),
-                buffer.len(),
+                &mut msg,
                 libc::MSG_TRUNC | libc::MSG_DONTWAIT,
-                (&mut from as *mut libc::sockaddr_ll).cast(),
-                &mut from_len,
             )
         };
         if len < 0 {
@@ -201,7 +241,8 @@ impl RawSocket {
         if from.sll_pkttype == libc::PACKET_OUTGOING || len > buffer.len() {
             return Ok(Received::Skipped);
         }
-        Ok(Received::Frame { len })
+        let age_ns = receive_stamp(&msg).map_or(0, |stamp| realtime_ns().saturating_sub(stamp));
+        Ok(Received::Frame { len, age_ns })
     }
 
     /// Sends `frame` (a whole Ethernet frame) out of the interface.
@@ -223,6 +264,32 @@ impl RawSocket {
         }
         Ok(())
     }
+}
+
+/// The kernel's receive time of the message (`SCM_TIMESTAMPNS`, CLOCK_REALTIME), ns.
+fn receive_stamp(msg: &libc::msghdr) -> Option<u64> {
+    // SAFETY: the CMSG macros walk the control buffer recvmsg filled, within its length.
+    unsafe {
+        let mut cmsg = libc::CMSG_FIRSTHDR(msg);
+        while !cmsg.is_null() {
+            if (*cmsg).cmsg_level == libc::SOL_SOCKET && (*cmsg).cmsg_type == libc::SCM_TIMESTAMPNS
+            {
+                let ts: libc::timespec = std::ptr::read_unaligned(libc::CMSG_DATA(cmsg).cast());
+                return Some(ts.tv_sec as u64 * 1_000_000_000 + ts.tv_nsec as u64);
+            }
+            cmsg = libc::CMSG_NXTHDR(msg, cmsg);
+        }
+    }
+    None
+}
+
+/// CLOCK_REALTIME now, ns (the clock of the kernel's receive time stamps).
+fn realtime_ns() -> u64 {
+    // SAFETY: timespec is plain data.
+    let mut ts: libc::timespec = unsafe { std::mem::zeroed() };
+    // SAFETY: a valid timespec to fill.
+    unsafe { libc::clock_gettime(libc::CLOCK_REALTIME, &mut ts) };
+    ts.tv_sec as u64 * 1_000_000_000 + ts.tv_nsec as u64
 }
 
 /// What the link did.
@@ -273,37 +340,63 @@ impl SocketLink {
         self.stats
     }
 
-    /// Answers frames until `stop` is set (looked at every [`POLL_INTERVAL`] at least).
-    pub fn serve(&mut self, stop: &AtomicBool) -> Result<LinkStats, SocketError> {
+    /// Frames and SYNC0 pulses on this thread, in time order, until `stop` is set (see the
+    /// module documentation): waits for a frame until the next pulse is due, answers every
+    /// frame queued (each at its arrival time), then runs the pulses due by now. Returns
+    /// what the link did and the pulses' wake-ups.
+    pub fn serve_with_sync0(
+        &mut self,
+        stop: &AtomicBool,
+    ) -> Result<(LinkStats, Sync0ClockStats), SocketError> {
+        let mut clock_stats = Sync0ClockStats::default();
+        let mut due = self.next_pulse_ns()?;
         while !stop.load(Ordering::Relaxed) {
-            self.serve_one(POLL_INTERVAL)?;
+            let wait = due.map_or(POLL_INTERVAL, |at| {
+                Duration::from_nanos(at.saturating_sub(self.clock.now_ns())).min(POLL_INTERVAL)
+            });
+            // Every frame that arrived before `now` is answered before the pulses up to it.
+            let mut answered = self.serve_one(wait)?;
+            let now = self.clock.now_ns();
+            while answered {
+                answered = self.serve_one(Duration::ZERO)?;
+            }
+            let mut segment = self.segment.lock().map_err(|_| SocketError::Poisoned)?;
+            clock_stats.count(due, now, segment.run_sync0_until(now));
+            due = segment.next_sync0_ns();
         }
-        Ok(self.stats)
+        Ok((self.stats, clock_stats))
     }
 
-    /// Waits at most `wait` for one frame and answers it.
-    pub fn serve_one(&mut self, wait: Duration) -> Result<(), SocketError> {
-        let len = match self.socket.receive(&mut self.buffer, wait)? {
-            Received::Frame { len } => len,
+    fn next_pulse_ns(&self) -> Result<Option<u64>, SocketError> {
+        let segment = self.segment.lock().map_err(|_| SocketError::Poisoned)?;
+        Ok(segment.next_sync0_ns())
+    }
+
+    /// Waits at most `wait` for one frame and answers it, the segment's time set to the
+    /// frame's arrival (the SYNC0 pulses due before it run first). Returns whether a frame
+    /// (answered or not) was taken.
+    pub fn serve_one(&mut self, wait: Duration) -> Result<bool, SocketError> {
+        let (len, age_ns) = match self.socket.receive(&mut self.buffer, wait)? {
+            Received::Frame { len, age_ns } => (len, age_ns),
             Received::Skipped => {
                 self.stats.skipped += 1;
-                return Ok(());
+                return Ok(true);
             }
-            Received::Nothing => return Ok(()),
+            Received::Nothing => return Ok(false),
         };
         self.stats.received += 1;
         let processed = {
             let mut segment = self.segment.lock().map_err(|_| SocketError::Poisoned)?;
-            segment.set_time_ns(self.clock.now_ns());
+            segment.set_time_ns(self.clock.now_ns().saturating_sub(age_ns));
             segment.process(&mut self.buffer[..len])
         };
         if processed.is_err() {
             self.stats.rejected += 1;
-            return Ok(());
+            return Ok(true);
         }
         self.socket.send(&self.buffer[..len])?;
         self.stats.returned += 1;
-        Ok(())
+        Ok(true)
     }
 }
 

@@ -60,6 +60,20 @@ pub struct Sync0ClockStats {
     pub total_late_ns: u64,
 }
 
+impl Sync0ClockStats {
+    /// Counts a wake-up at segment time `now_ns` that ran `pulses` pulses, the first due at
+    /// `due_ns`.
+    pub fn count(&mut self, due_ns: Option<u64>, now_ns: u64, pulses: u64) {
+        if let (Some(at), true) = (due_ns, pulses > 0) {
+            let late = now_ns.saturating_sub(at);
+            self.wakeups += 1;
+            self.max_late_ns = self.max_late_ns.max(late);
+            self.total_late_ns += late;
+        }
+        self.pulses += pulses;
+    }
+}
+
 /// Runs the SYNC0 pulses of `segment` at their segment time on `clock` until `stop` is
 /// set. Returns what it did, or `None` if the segment's lock was poisoned.
 pub fn run_sync0_clock(
@@ -73,14 +87,7 @@ pub fn run_sync0_clock(
         let now = clock.now_ns();
         let next = {
             let mut seg = segment.lock().ok()?;
-            let pulses = seg.run_sync0_until(now);
-            if let (Some(at), true) = (due, pulses > 0) {
-                let late = now.saturating_sub(at);
-                stats.wakeups += 1;
-                stats.max_late_ns = stats.max_late_ns.max(late);
-                stats.total_late_ns += late;
-            }
-            stats.pulses += pulses;
+            stats.count(due, now, seg.run_sync0_until(now));
             seg.next_sync0_ns()
         };
         due = next;

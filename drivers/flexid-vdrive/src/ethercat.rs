@@ -4,8 +4,8 @@
 //!
 //! The servos are flexid-ecat's (the ESC, the CoE dictionary and the CST process data);
 //! this module builds them from the same plant file and `[drive]` section as the CAN drive
-//! (rated and peak torque, encoder) and serves them: the SYNC0 clock on a thread of its
-//! own, the frames on the calling thread ([`flexid_ecat::socket_link::SocketLink`]).
+//! (rated and peak torque, encoder) and serves them: frames and SYNC0 pulses on the calling
+//! thread, in the order of their times ([`flexid_ecat::socket_link::SocketLink`]).
 //! Only the plant's linear chain is simulated here (the `[effects]` of a plant file are
 //! not, yet).
 
@@ -14,9 +14,9 @@ use flexid_core::plant::physics::{LinearChain, PhysicsError};
 use flexid_ecat::esc::sii::SiiError;
 use flexid_ecat::inprocess::SharedSegment;
 use flexid_ecat::socket_link::{LinkStats, SocketError, SocketLink};
-use flexid_ecat::sync0_clock::{run_sync0_clock, SegmentClock, Sync0ClockStats};
+use flexid_ecat::sync0_clock::Sync0ClockStats;
 use flexid_ecat::{CycleStats, Segment, ServoClock, ServoConfig};
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::AtomicBool;
 use std::sync::{Arc, Mutex};
 use thiserror::Error;
 
@@ -129,29 +129,17 @@ pub fn servo_stats(segment: &SharedSegment) -> Result<CycleStats, EthercatError>
     Ok(sum)
 }
 
-/// Serves `segment` on `link` until `stop` is set: the SYNC0 clock on a thread of its own
-/// (`setup` applied to it), the frames on this one (the caller sets its scheduling).
+/// Serves the link's segment until `stop` is set: frames and SYNC0 pulses on this thread
+/// in time order ([`SocketLink::serve_with_sync0`]); the caller sets its scheduling.
 pub fn serve(
     link: &mut SocketLink,
     segment: &SharedSegment,
-    clock: SegmentClock,
     stop: &AtomicBool,
-    setup: flexid_rt::RtSetup,
 ) -> Result<EthercatStats, EthercatError> {
-    let (served, clock_stats) = std::thread::scope(|s| {
-        let ticker = s.spawn(|| {
-            let _ = setup.apply();
-            run_sync0_clock(segment, clock, stop)
-        });
-        let served = link.serve(stop);
-        // The link failed: stop the clock thread too.
-        stop.store(true, Ordering::Relaxed);
-        (served, ticker.join().ok().flatten())
-    });
-    let link = served?;
+    let (link, clock) = link.serve_with_sync0(stop)?;
     Ok(EthercatStats {
         link,
-        clock: clock_stats.ok_or(EthercatError::Poisoned)?,
+        clock,
         servos: servo_stats(segment)?,
     })
 }

@@ -126,7 +126,8 @@ fn report(what: &str, outcome: &SweepOutcome) {
     let c = outcome.counters;
     eprintln!(
         "{what}: {} cycles in {:.2} s ({:.0} cycles/s), {}; master: feedback missed {} (late \
-         {}, lost {}), schedule overruns {}; working-counter errors: {}",
+         {}, lost {}), schedule overruns {}; working-counter errors: {}; frames that passed \
+         the drive after their cycle {}, in the cycle before {}; held rows {}",
         outcome.recording.len(),
         outcome.elapsed.as_secs_f64(),
         outcome.cycles_per_s(),
@@ -140,7 +141,10 @@ fn report(what: &str, outcome: &SweepOutcome) {
             "0".to_string()
         } else {
             format!("stopped: {}", outcome.reason.text())
-        }
+        },
+        outcome.placement.late_passes,
+        outcome.placement.replaced_setpoints,
+        outcome.held_rows,
     );
 }
 
@@ -273,10 +277,16 @@ fn veth_bring_up_and_a_realtime_sweep_at_4_khz_on_the_sync0_clock_identify_the_p
     // The plant ran on the SYNC0 clock: one cycle per pulse over the sweep's wall time,
     // whatever the frames did.
     assert!(pulses >= cycles, "{pulses} pulses for {cycles} cycles");
-    assert!(
-        missed * 50 <= cycles,
-        "more than 2 % missed cycles: {missed} of {cycles}"
-    );
+    // Missed cycles (a SYNC0 pulse with no frame since the last: the servo holds its
+    // torque) are the host's, not the code's: 1.3-2.2 % on this VM, 3.2 % on a loaded
+    // 2-core CI runner. No fixed share is asserted. What bounds them is the servo's own
+    // watchdog (a run of `--fault-after-missed` faults it and the sweep would not be
+    // `Complete`, checked above); what makes them harmless is that the recording says
+    // what the servo did: each frame's DC time places it at its SYNC0 cycle
+    // (`Feedback::drive_cycle`), so the cycles a late frame let pass are held rows with
+    // the held torque (held rows ~ missed cycles, printed above). Before that, 2 % missed
+    // cycles left J3 up to 2.9 % off; since, within 0.7 %. The outcome below: the plant
+    // identified within 3 % from what the sweep recorded.
     // Inputs latched at SYNC0 pulse k are read by the frame after it, which carries the
     // torque pulse k + 1 applies: one cycle of I/O delay, which the drive reports
     // (`grid_io_delay_cycles`), the sweep writes into the recording and the analysis takes

@@ -165,6 +165,7 @@ impl<B: CanBus> Link<B> {
             torque_setpoint_nm: self.scaling.torque_nm(sp.permille),
             saturated: sp.saturated,
             fresh,
+            drive_cycle: None,
             counters: self.exchange.counters,
         })
     }

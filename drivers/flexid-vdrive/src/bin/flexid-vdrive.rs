@@ -269,23 +269,19 @@ fn serve_ethercat(cli: &Cli, plant: &DrivePlant, iface: &str) -> ExitCode {
             return ExitCode::from(1);
         }
     };
-    let setup = match cli.fifo_priority {
-        Some(p) => {
-            let setup = flexid_rt::RtSetup::realtime(p);
-            for r in &setup.apply().refused {
-                eprintln!("flexid-vdrive: {r}");
-            }
-            setup
+    // The serving thread (this one) runs the frames and the SYNC0 pulses.
+    if let Some(p) = cli.fifo_priority {
+        for r in &flexid_rt::RtSetup::realtime(p).apply().refused {
+            eprintln!("flexid-vdrive: {r}");
         }
-        None => flexid_rt::RtSetup::none(),
-    };
+    }
     println!(
         "flexid-vdrive: {} EtherCAT SubDevice(s) ready on {iface} ({cycle_hz} Hz, {:?} clock)",
         options.axes, options.clock
     );
     use std::io::Write;
     let _ = std::io::stdout().flush();
-    match ethercat::serve(&mut link, &segment, clock, &STOP, setup) {
+    match ethercat::serve(&mut link, &segment, &STOP) {
         Ok(s) => {
             eprintln!(
                 "flexid-vdrive: frames received {}, returned {}, rejected {}; SYNC0 pulses {}, \

@@ -231,7 +231,7 @@ pub struct InProcessEmulator {
 
 impl InProcessEmulator {
     /// `options`' servos in front of the test plant on `veth.inner`, the frames served at
-    /// `SCHED_FIFO` `priority` (the SYNC0 clock thread too) when granted.
+    /// `SCHED_FIFO` `priority` (with the SYNC0 pulses, on one thread) when granted.
     pub fn start(
         veth: &Veth,
         options: flexid_vdrive::ethercat::EthercatOptions,
@@ -256,10 +256,9 @@ impl InProcessEmulator {
                 let link = entered.and_then(|()| {
                     let clock = flexid_ecat::sync0_clock::SegmentClock::start();
                     flexid_ecat::socket_link::SocketLink::open(&inner, seg.clone(), clock)
-                        .map(|l| (l, clock))
                         .map_err(|e| e.to_string())
                 });
-                let (mut link, clock) = match link {
+                let mut link = match link {
                     Ok(l) => {
                         let _ = ready_tx.send(Ok(()));
                         l
@@ -274,8 +273,7 @@ impl InProcessEmulator {
                     ..flexid_rt::RtSetup::realtime(priority)
                 };
                 let _ = setup.apply();
-                flexid_vdrive::ethercat::serve(&mut link, &seg, clock, &halt, setup)
-                    .map_err(|e| e.to_string())
+                flexid_vdrive::ethercat::serve(&mut link, &seg, &halt).map_err(|e| e.to_string())
             })
             .expect("emulator thread");
         ready_rx

@@ -38,7 +38,7 @@ fn demo_at(rate_hz: u32) {
         se.contains(&format!("at {rate_hz} Hz")),
         "not measured at {rate_hz} Hz:\n{se}"
     );
-    // "  J1: identified 3.61353e-3, true 3.61400e-3, error -0.01 %"
+    // "  J1: identified 3.61353e-3, true 3.61400e-3, error -0.013 %"
     let rows: Vec<(String, f64)> = so
         .lines()
         .filter_map(|l| {

@@ -133,18 +133,12 @@ pub(super) fn print_truth(an: &Analysis, plant: &PlantFile) {
     let Some(m) = &an.model else { return };
     println!("\nAgainst the plant file (the truth in this simulation):");
     let truth = &plant.chain;
-    if m.masses == truth.masses() {
-        for (name, got, want) in [
-            ("J", &m.inertia_kgm2, &truth.inertia_kgm2),
-            ("c", &m.stiffness_nm_per_rad, &truth.stiffness_nm_per_rad),
-        ] {
-            for (i, (g, w)) in got.iter().zip(want).enumerate() {
-                println!(
-                    "  {name}{}: identified {g:.5e}, true {w:.5e}, error {:+.2} %",
-                    i + 1,
-                    100.0 * (g - w) / w
-                );
-            }
+    if let Some(errors) = crate::model::truth::against_truth(
+        (&m.inertia_kgm2, &m.stiffness_nm_per_rad),
+        (&truth.inertia_kgm2, &truth.stiffness_nm_per_rad),
+    ) {
+        for e in errors {
+            println!("  {e}");
         }
     } else {
         println!(

@@ -11,9 +11,11 @@ mod chain;
 pub(crate) mod eigen;
 mod sampled;
 mod state_space;
+pub mod truth;
 pub use chain::{Chain, ModelError};
 pub use sampled::SampledChain;
 pub use state_space::{DiscreteStateSpace, StateSpace};
+pub use truth::ParamError;
 
 #[cfg(test)]
 mod tests;

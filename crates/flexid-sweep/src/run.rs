@@ -622,6 +622,9 @@ pub fn run_sweep_into<D: CyclicDrive>(
             saturated: counters.saturated,
             malformed: counters.malformed,
             overruns,
+            held_rows: fill.held(),
+            late_passes,
+            replaced_setpoints,
         }),
         ..Sidecar::default()
     };

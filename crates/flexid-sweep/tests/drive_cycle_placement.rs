@@ -168,6 +168,14 @@ fn sweep(reports_cycle: bool) -> (usize, usize, u64, u64) {
     assert_eq!(out.reason, StopReason::Complete, "{:?}", out.reason);
     let rec = &out.recording;
     assert_eq!(rec.sidecar.io_delay_samples, Some(1));
+    // the recording says so itself
+    let counters = rec.sidecar.cycle_counters.as_ref().expect("cycle counters");
+    assert_eq!(counters.held_rows, out.held_rows);
+    assert_eq!(counters.late_passes, out.placement.late_passes);
+    assert_eq!(
+        counters.replaced_setpoints,
+        out.placement.replaced_setpoints
+    );
     assert_eq!(rec.len(), plan.torque_nm.len());
     let base = servo.first_read.expect("a frame");
     let (wrong, positions) = compare(

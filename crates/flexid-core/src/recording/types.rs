@@ -116,6 +116,19 @@ pub struct CycleCounters {
     /// from that cycle instead of sending the missed SYNCs back to back.
     #[serde(default)]
     pub overruns: u64,
+    /// Rows recorded without their own feedback (lost, or a cycle the drive went through
+    /// holding its last torque: a late frame, a skipped slot), their motion interpolated
+    /// from the rows either side and their torque the one the drive held.
+    #[serde(default)]
+    pub held_rows: u64,
+    /// Frames that passed the drive one or more of its cycles after their row's (drives
+    /// that count their cycles: EtherCAT's DC time).
+    #[serde(default)]
+    pub late_passes: u64,
+    /// Frames that passed the drive in the cycle of the row before, whose set-point then
+    /// replaced that row's (which never acted).
+    #[serde(default)]
+    pub replaced_setpoints: u64,
 }
 
 /// Percentiles of a set of durations, ns (percentiles within 0.4 %, max exact).

@@ -75,6 +75,19 @@ pub(super) struct BatchedSystem {
     bearings: Vec<(usize, usize)>,
     /// Per axis (position `free + i`).
     gears: Vec<Gear>,
+    /// The lines' state: what a kept solve holds.
+    lines: LineState,
+    /// One column of `S` and its multipliers during a step of the elimination.
+    cr: Vec<Lanes>,
+    ci: Vec<Lanes>,
+    lr: Vec<Lanes>,
+    li: Vec<Lanes>,
+}
+
+/// The state of a batch's lines in a [`BatchedSystem`]: its factorisation, solution and
+/// the springs' terms, all a later pass at the same parameters takes up.
+#[derive(Debug, Clone)]
+struct LineState {
     /// `S` (packed lower triangle), then `L` below the diagonal and `D` on it: real and
     /// imaginary parts.
     tr: Vec<Lanes>,
@@ -82,11 +95,6 @@ pub(super) struct BatchedSystem {
     /// `1 / D` per position.
     inv_r: Vec<Lanes>,
     inv_i: Vec<Lanes>,
-    /// One column of `S` and its multipliers during a step of the elimination.
-    cr: Vec<Lanes>,
-    ci: Vec<Lanes>,
-    lr: Vec<Lanes>,
-    li: Vec<Lanes>,
     /// `B`, then `X_a` (`n_a x N`, position-major).
     xr: Vec<Lanes>,
     xi: Vec<Lanes>,
@@ -104,17 +112,7 @@ pub(super) struct BatchedSystem {
 /// and for which rows.
 #[derive(Debug, Clone)]
 pub(super) struct KeptLines {
-    tr: Vec<Lanes>,
-    ti: Vec<Lanes>,
-    inv_r: Vec<Lanes>,
-    inv_i: Vec<Lanes>,
-    xr: Vec<Lanes>,
-    xi: Vec<Lanes>,
-    wr: Vec<Lanes>,
-    wi: Vec<Lanes>,
-    dr: Vec<Lanes>,
-    di: Vec<Lanes>,
-    omega: Lanes,
+    lines: LineState,
     /// Per lane: solved by the elimination (else by the pivoted solve when asked).
     pub(super) solved: [bool; LANES],
     /// The rows of `X_a` solved.
@@ -158,21 +156,23 @@ impl BatchedSystem {
             coord,
             bearings,
             gears,
-            tr: lanes(tri(na, 0)),
-            ti: lanes(tri(na, 0)),
-            inv_r: lanes(na),
-            inv_i: lanes(na),
+            lines: LineState {
+                tr: lanes(tri(na, 0)),
+                ti: lanes(tri(na, 0)),
+                inv_r: lanes(na),
+                inv_i: lanes(na),
+                xr: lanes(na * axes),
+                xi: lanes(na * axes),
+                wr: lanes(axes),
+                wi: lanes(axes),
+                dr: lanes(axes),
+                di: lanes(axes),
+                omega: ZERO,
+            },
             cr: lanes(na),
             ci: lanes(na),
             lr: lanes(na),
             li: lanes(na),
-            xr: lanes(na * axes),
-            xi: lanes(na * axes),
-            wr: lanes(axes),
-            wi: lanes(axes),
-            dr: lanes(axes),
-            di: lanes(axes),
-            omega: ZERO,
         })
     }
 
@@ -218,7 +218,7 @@ impl BatchedSystem {
         let Some(&last) = f_hz.last() else {
             return ok;
         };
-        for (l, w) in self.omega.iter_mut().enumerate() {
+        for (l, w) in self.lines.omega.iter_mut().enumerate() {
             *w = 2.0 * std::f64::consts::PI * f_hz.get(l).copied().unwrap_or(last);
         }
         ok = [true; LANES];
@@ -236,15 +236,16 @@ impl BatchedSystem {
     #[inline(always)]
     #[allow(clippy::needless_range_loop)] // a lane of several parallel arrays
     fn assemble(&mut self, theta: &Flexibilities, ok: &mut [bool; LANES]) {
-        let w = self.omega;
+        let w = self.lines.omega;
         let mut w2 = ZERO;
         for l in 0..LANES {
             w2[l] = -(w[l] * w[l]);
         }
         for (((tr, ti), &m), &k) in self
+            .lines
             .tr
             .iter_mut()
-            .zip(self.ti.iter_mut())
+            .zip(self.lines.ti.iter_mut())
             .zip(&self.mass)
             .zip(&self.gravity)
         {
@@ -257,12 +258,12 @@ impl BatchedSystem {
             let (k, c) = (theta.stiffness_nm_per_rad[p], theta.damping_nms_per_rad[p]);
             let d = tri(b, b);
             for l in 0..LANES {
-                self.tr[d][l] += k;
-                self.ti[d][l] += w[l] * c;
+                self.lines.tr[d][l] += k;
+                self.lines.ti[d][l] += w[l] * c;
             }
         }
-        self.xr.fill(ZERO);
-        self.xi.fill(ZERO);
+        self.lines.xr.fill(ZERO);
+        self.lines.xi.fill(ZERO);
         let axes = self.gears.len();
         for (i, g) in self.gears.iter().enumerate() {
             let (k, c) = (
@@ -282,14 +283,14 @@ impl BatchedSystem {
                 let (ir, ii) = (dr / d2, -di / d2);
                 // w s^2 m / d on the diagonal, w r / d in B
                 let (qr, qi) = (wr * ir - wi * ii, wr * ii + wi * ir);
-                self.tr[dpos][l] += qr * sm;
-                self.ti[dpos][l] += qi * sm;
-                self.xr[pos * axes + i][l] = qr * g.ratio;
-                self.xi[pos * axes + i][l] = qi * g.ratio;
-                self.wr[i][l] = wr;
-                self.wi[i][l] = wi;
-                self.dr[i][l] = ir;
-                self.di[i][l] = ii;
+                self.lines.tr[dpos][l] += qr * sm;
+                self.lines.ti[dpos][l] += qi * sm;
+                self.lines.xr[pos * axes + i][l] = qr * g.ratio;
+                self.lines.xi[pos * axes + i][l] = qi * g.ratio;
+                self.lines.wr[i][l] = wr;
+                self.lines.wi[i][l] = wi;
+                self.lines.dr[i][l] = ir;
+                self.lines.di[i][l] = ii;
             }
         }
     }
@@ -302,7 +303,7 @@ impl BatchedSystem {
         let bound = MAX_MULTIPLIER * MAX_MULTIPLIER;
         for k in 0..na {
             let d = tri(k, k);
-            let (dr, di) = (self.tr[d], self.ti[d]);
+            let (dr, di) = (self.lines.tr[d], self.lines.ti[d]);
             let (mut ir, mut ii, mut d2) = (ZERO, ZERO, ZERO);
             for l in 0..LANES {
                 d2[l] = dr[l] * dr[l] + di[l] * di[l];
@@ -310,11 +311,11 @@ impl BatchedSystem {
                 ir[l] = dr[l] / d2[l];
                 ii[l] = -di[l] / d2[l];
             }
-            self.inv_r[k] = ir;
-            self.inv_i[k] = ii;
+            self.lines.inv_r[k] = ir;
+            self.lines.inv_i[k] = ii;
             // column k below the diagonal, and its multipliers l_ik = s_ik / d_k
             for i in k + 1..na {
-                let (cr, ci) = (self.tr[tri(i, k)], self.ti[tri(i, k)]);
+                let (cr, ci) = (self.lines.tr[tri(i, k)], self.lines.ti[tri(i, k)]);
                 let (mut lr, mut li) = (ZERO, ZERO);
                 for l in 0..LANES {
                     ok[l] &= cr[l] * cr[l] + ci[l] * ci[l] <= bound * d2[l];
@@ -331,17 +332,17 @@ impl BatchedSystem {
             for i in k + 1..na {
                 let (lr, li) = (self.lr[i], self.li[i]);
                 let row = tri(i, k + 1)..tri(i, i) + 1;
-                for ((tr, ti), (cr, ci)) in self.tr[row.clone()]
+                for ((tr, ti), (cr, ci)) in self.lines.tr[row.clone()]
                     .iter_mut()
-                    .zip(self.ti[row].iter_mut())
+                    .zip(self.lines.ti[row].iter_mut())
                     .zip(self.cr[k + 1..=i].iter().zip(&self.ci[k + 1..=i]))
                 {
                     sub_product(tr, ti, &lr, &li, cr, ci);
                 }
             }
             for i in k + 1..na {
-                self.tr[tri(i, k)] = self.lr[i];
-                self.ti[tri(i, k)] = self.li[i];
+                self.lines.tr[tri(i, k)] = self.lr[i];
+                self.lines.ti[tri(i, k)] = self.li[i];
             }
         }
     }
@@ -352,17 +353,17 @@ impl BatchedSystem {
     fn substitute(&mut self, rows: Rows) {
         let (na, free) = (self.na, self.free);
         let axes = self.gears.len();
-        let (xr, xi) = (&mut self.xr, &mut self.xi);
+        let (xr, xi) = (&mut self.lines.xr, &mut self.lines.xi);
         // forward: L y = B (rows of B above `free` are zero and stay so)
         for i in free..na {
             for k in free..i {
-                let (lr, li) = (self.tr[tri(i, k)], self.ti[tri(i, k)]);
+                let (lr, li) = (self.lines.tr[tri(i, k)], self.lines.ti[tri(i, k)]);
                 row_sub_product(xr, xi, axes, i, k, &lr, &li);
             }
         }
         // D^-1
         for i in free..na {
-            let (ir, ii) = (self.inv_r[i], self.inv_i[i]);
+            let (ir, ii) = (self.lines.inv_r[i], self.lines.inv_i[i]);
             for (r, m) in xr[i * axes..(i + 1) * axes]
                 .iter_mut()
                 .zip(&mut xi[i * axes..(i + 1) * axes])
@@ -388,10 +389,10 @@ impl BatchedSystem {
     fn back_substitute(&mut self, rows: std::ops::Range<usize>) {
         let na = self.na;
         let axes = self.gears.len();
-        let (xr, xi) = (&mut self.xr, &mut self.xi);
+        let (xr, xi) = (&mut self.lines.xr, &mut self.lines.xi);
         for i in rows.rev() {
             for k in i + 1..na {
-                let (lr, li) = (self.tr[tri(k, i)], self.ti[tri(k, i)]);
+                let (lr, li) = (self.lines.tr[tri(k, i)], self.lines.ti[tri(k, i)]);
                 row_sub_product(xr, xi, axes, i, k, &lr, &li);
             }
         }
@@ -422,34 +423,14 @@ impl BatchedSystem {
     /// `w_i` and `1 / d_i`, the lines' `w`) with `kept`'s: four lines' solve kept aside
     /// without copying, and taken up again later.
     pub(super) fn swap_lines(&mut self, kept: &mut KeptLines) {
-        std::mem::swap(&mut self.tr, &mut kept.tr);
-        std::mem::swap(&mut self.ti, &mut kept.ti);
-        std::mem::swap(&mut self.inv_r, &mut kept.inv_r);
-        std::mem::swap(&mut self.inv_i, &mut kept.inv_i);
-        std::mem::swap(&mut self.xr, &mut kept.xr);
-        std::mem::swap(&mut self.xi, &mut kept.xi);
-        std::mem::swap(&mut self.wr, &mut kept.wr);
-        std::mem::swap(&mut self.wi, &mut kept.wi);
-        std::mem::swap(&mut self.dr, &mut kept.dr);
-        std::mem::swap(&mut self.di, &mut kept.di);
-        std::mem::swap(&mut self.omega, &mut kept.omega);
+        std::mem::swap(&mut self.lines, &mut kept.lines);
     }
 
     /// Buffers to keep one batch's solve in ([`BatchedSystem::swap_lines`]), sized as the
     /// system's.
     pub(super) fn kept_lines(&self) -> KeptLines {
         KeptLines {
-            tr: self.tr.clone(),
-            ti: self.ti.clone(),
-            inv_r: self.inv_r.clone(),
-            inv_i: self.inv_i.clone(),
-            xr: self.xr.clone(),
-            xi: self.xi.clone(),
-            wr: self.wr.clone(),
-            wi: self.wi.clone(),
-            dr: self.dr.clone(),
-            di: self.di.clone(),
-            omega: self.omega,
+            lines: self.lines.clone(),
             solved: [false; LANES],
             rows: Rows::Gears,
         }
@@ -459,7 +440,7 @@ impl BatchedSystem {
     /// `G_ij = s r_i X_m,ij` with `X_m,ij = (r_i delta_ij + w_i X_a,gear_i j) / d_i`.
     pub(super) fn g_into(&self, lane: usize, g: &mut [Complex64]) {
         let axes = self.gears.len();
-        let s = Complex64::new(0.0, self.omega[lane]);
+        let s = Complex64::new(0.0, self.lines.omega[lane]);
         for (i, gear) in self.gears.iter().enumerate() {
             for j in 0..axes {
                 g[i * axes + j] = s * gear.ratio * self.motor_x(i, j, lane);
@@ -485,18 +466,18 @@ impl BatchedSystem {
 
     /// `s = j 2 pi f` of `lane`.
     pub(super) fn s(&self, lane: usize) -> Complex64 {
-        Complex64::new(0.0, self.omega[lane])
+        Complex64::new(0.0, self.lines.omega[lane])
     }
 
     fn x(&self, k: usize, lane: usize) -> Complex64 {
-        Complex64::new(self.xr[k][lane], self.xi[k][lane])
+        Complex64::new(self.lines.xr[k][lane], self.lines.xi[k][lane])
     }
 
     /// `X_m,ij = (r_i delta_ij + w_i X_a,gear_i j) / d_i` of `lane`.
     fn motor_x(&self, i: usize, j: usize, lane: usize) -> Complex64 {
         let axes = self.gears.len();
-        let w = Complex64::new(self.wr[i][lane], self.wi[i][lane]);
-        let inv = Complex64::new(self.dr[i][lane], self.di[i][lane]);
+        let w = Complex64::new(self.lines.wr[i][lane], self.lines.wi[i][lane]);
+        let inv = Complex64::new(self.lines.dr[i][lane], self.lines.di[i][lane]);
         let mut xm = w * self.x((self.free + i) * axes + j, lane);
         if i == j {
             xm += self.gears[i].ratio;

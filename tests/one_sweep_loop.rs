@@ -26,12 +26,7 @@ fn plan() -> SweepPlan {
     let mut d = MultisineDesign::new(CYCLE_HZ, 500, [2.0, 200.0], 0.4, 1.0);
     d.crest_iterations = 10;
     let ms = d.generate().expect("multisine");
-    let torque: Vec<f64> = ms
-        .repeat(4)
-        .iter()
-        .map(|t| (t * 1000.0).round() / 1000.0)
-        .collect();
-    SweepPlan::new(CYCLE_HZ, torque, ms.info(3, 1), Pacing::Lockstep)
+    SweepPlan::from_multisine(CYCLE_HZ, &ms, 3, 1, 1000.0, Pacing::Lockstep)
 }
 
 fn sweep<D: CyclicDrive>(drive: &mut D, plan: &SweepPlan) -> SweepOutcome {

@@ -3,7 +3,7 @@
 use flexid_canopen::pdo::{check_bus_load, default_mapping, BusLoadError};
 use flexid_canopen::profile::ObjectMap;
 use flexid_canopen::MasterConfig;
-use flexid_core::excitation::ExcitationInfo;
+use flexid_core::excitation::{ExcitationInfo, Multisine};
 use std::time::Duration;
 
 /// How cycles are paced.
@@ -73,6 +73,31 @@ impl SweepPlan {
             excitation,
             pacing,
         }
+    }
+
+    /// [`SweepPlan::new`] of `ms` repeated `transient_periods + periods` times, each
+    /// set-point rounded to the grid a drive takes them on, `steps_per_nm` steps per N m
+    /// (CiA 402: one per mille of the rated torque, `1000 / rated`), so that the
+    /// set-points sent are the ones planned.
+    pub fn from_multisine(
+        cycle_hz: f64,
+        ms: &Multisine,
+        periods: usize,
+        transient_periods: usize,
+        steps_per_nm: f64,
+        pacing: Pacing,
+    ) -> Self {
+        let torque = ms
+            .repeat(periods + transient_periods)
+            .iter()
+            .map(|t| (t * steps_per_nm).round() / steps_per_nm)
+            .collect();
+        SweepPlan::new(
+            cycle_hz,
+            torque,
+            ms.info(periods, transient_periods),
+            pacing,
+        )
     }
 
     /// Cycle period.

@@ -111,10 +111,5 @@ pub fn plan(period: usize, periods: usize) -> SweepPlan {
     let mut design = MultisineDesign::new(CYCLE_HZ, period, [1.0, 500.0], 0.8, 0.4);
     design.crest_iterations = 10;
     let ms = design.generate().expect("multisine");
-    let torque: Vec<f64> = ms
-        .repeat(periods + 1)
-        .iter()
-        .map(|t| (t * 1000.0).round() / 1000.0)
-        .collect();
-    SweepPlan::new(CYCLE_HZ, torque, ms.info(periods, 1), Pacing::Lockstep)
+    SweepPlan::from_multisine(CYCLE_HZ, &ms, periods, 1, 1000.0, Pacing::Lockstep)
 }

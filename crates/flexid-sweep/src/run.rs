@@ -439,6 +439,7 @@ pub fn run_sweep_into<D: CyclicDrive>(
     // frames that passed the drive later or earlier than their row's cycle.
     let mut grid_base: Option<u64> = None;
     let (mut late_passes, mut replaced_setpoints) = (0u64, 0u64);
+    let mut replaced_last = false;
     let mut k = 0;
     while k < n {
         if stop.load(Ordering::Relaxed) {
@@ -502,14 +503,17 @@ pub fn run_sweep_into<D: CyclicDrive>(
                 rows += late as usize;
                 schedule.skip(late);
                 late_passes += 1;
-            } else if row < k as u64 {
+            } else if row + 1 == k as u64 && !replaced_last {
                 // It passed in the cycle of the row before: that row's set-point never
-                // acted, this one replaced it.
+                // acted, this one replaced it. (Once in a row, and only from the row just
+                // before: a drive cycle that does not advance is no timing to place by, and
+                // the rows go on as they come.)
                 replaced_setpoint = fill.set_last_setpoint(k - 1, fb.torque_setpoint_nm, sink);
             }
             // The inputs of the drive's cycle, wherever in the cycle the frame came back.
             fresh = true;
         }
+        replaced_last = replaced_setpoint;
         if replaced_setpoint {
             last_torque = fb.torque_setpoint_nm;
             replaced_setpoints += 1;
@@ -672,17 +676,20 @@ mod tests {
         s.next_deadline();
         assert_eq!(s.slot_ns, first + p);
         // 2.7 periods behind: an overrun; three slots skipped (the loop records a held row
-        // for each), the schedule still on the grid.
+        // for each), the schedule still on the grid. A host that stalls between the sleep
+        // and the call (this VM stalls up to 2 ms) makes it more: the slots skipped are
+        // those the schedule moved on by.
         let behind_from = s.slot_ns;
         clock::sleep_until_ns(behind_from + 2_700_000);
         s.next_deadline();
         assert_eq!(s.overruns, 1);
-        assert_eq!(s.take_skipped(), 3);
+        let skipped = s.take_skipped();
+        assert!(skipped >= 3, "{skipped} slots skipped");
         assert_eq!(s.take_skipped(), 0, "taken once");
         assert_eq!(
             s.slot_ns,
-            behind_from + 4 * p,
-            "slot 3 runs, its deadline a period on"
+            behind_from + (skipped + 1) * p,
+            "the slot after the skipped ones runs, its deadline a period on"
         );
         assert_eq!(off_grid(s.slot_ns, phase, p), 0);
         // Without a grid, the first slot starts now.

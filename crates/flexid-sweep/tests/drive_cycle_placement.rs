@@ -25,6 +25,8 @@ struct Sync0Servo {
     period: Duration,
     /// Whether to report `drive_cycle` (false: a bus that cannot say).
     reports_cycle: bool,
+    /// A broken clock: this drive cycle reported for every frame.
+    frozen_cycle: Option<u64>,
     /// Loop calls whose frame passes one pulse late.
     late_calls: Vec<u64>,
     calls: u64,
@@ -47,6 +49,7 @@ impl Sync0Servo {
             origin: Instant::now(),
             period: Duration::from_secs_f64(1.0 / CYCLE_HZ),
             reports_cycle,
+            frozen_cycle: None,
             late_calls,
             calls: 0,
             pulse: 0,
@@ -109,7 +112,7 @@ impl CyclicDrive for Sync0Servo {
             torque_setpoint_nm: torque_nm,
             saturated: false,
             fresh: true,
-            drive_cycle: self.reports_cycle.then_some(read),
+            drive_cycle: self.frozen_cycle.or(self.reports_cycle.then_some(read)),
             counters: self.counters,
         })
     }
@@ -222,4 +225,28 @@ fn without_the_drive_cycle_the_late_frames_leave_wrong_torques_in_the_recording(
     let (wrong, _, placed, _) = sweep(false);
     assert_eq!(placed, 0);
     assert!(wrong >= 5, "{wrong} rows wrong");
+}
+
+#[test]
+fn a_drive_cycle_that_never_advances_does_not_hold_the_sweep_back() {
+    // Every frame reports the same cycle: after one replaced set-point the rows go on as
+    // they come (without that rule the loop would resend one set-point until the
+    // duration limit).
+    let plan = plan();
+    let mut servo = Sync0Servo::new(true, Vec::new());
+    servo.frozen_cycle = Some(7);
+    let stop = AtomicBool::new(false);
+    let out = run_sweep(&mut servo, &plan, &stop, &mut |_| {});
+    assert_eq!(out.reason, StopReason::Complete, "{:?}", out.reason);
+    assert_eq!(out.recording.len(), plan.torque_nm.len());
+    let planned_s = plan.torque_nm.len() as f64 / CYCLE_HZ;
+    assert!(
+        out.elapsed.as_secs_f64() < 1.5 * planned_s + 0.5,
+        "{:?} for {planned_s} s planned",
+        out.elapsed
+    );
+    assert_eq!(
+        out.placement.replaced_setpoints, 1,
+        "only the row after the frozen one"
+    );
 }
